@@ -1,0 +1,185 @@
+"""Validated configuration: frozen dataclasses with units in the field names, loaded from YAML.
+
+Inside the core every value is SI (m, N, rad, s, Pa).  In YAML a user may also write the
+edge units the project allows, named so: ``*_deg`` for an angle whose field is ``*_rad`` and
+``*_mm`` for a length whose field is ``*_m`` (``*_mm_s`` for ``*_m_s``).  Each field carries
+its unit, an admissible range and a one-line meaning in its metadata; a bad value is refused
+with the dotted key and the reason.
+"""
+
+import dataclasses
+import math
+from pathlib import Path
+
+import yaml
+
+
+class ConfigError(ValueError):
+    """A configuration value is missing, unknown or out of range; message names the key."""
+
+
+def field(default, unit, doc, lo=None, hi=None, lo_open=False, hi_open=False):
+    """Declare a config field with its unit, meaning and admissible range [lo, hi]."""
+    return dataclasses.field(default=default, metadata={
+        "unit": unit, "doc": doc, "lo": lo, "hi": hi, "lo_open": lo_open, "hi_open": hi_open})
+
+
+_EDGE_UNITS = (   # (suffix in YAML, suffix of the SI field, factor to SI)
+    ("_deg", "_rad", math.pi / 180.0),
+    ("_mm_s", "_m_s", 1e-3),
+    ("_mm", "_m", 1e-3),
+    ("_um", "_m", 1e-6),
+)
+
+
+def _check_value(path, f, value):
+    meta = f.metadata
+    if isinstance(value, (list, tuple, dict)):
+        return value
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        if isinstance(f.default, bool) and isinstance(value, bool):
+            return value
+        if isinstance(f.default, str) and isinstance(value, str):
+            return value
+        raise ConfigError(f"{path}: expected a number in {meta.get('unit', '')}, "
+                          f"got {value!r}")
+    value = float(value) if not isinstance(f.default, int) or isinstance(f.default, bool) \
+        else value
+    if not math.isfinite(value):
+        raise ConfigError(f"{path}: must be finite, got {value!r}")
+    lo, hi = meta.get("lo"), meta.get("hi")
+    if lo is not None and (value < lo or (meta.get("lo_open") and value == lo)):
+        rel = ">" if meta.get("lo_open") else ">="
+        raise ConfigError(f"{path}: must be {rel} {lo} {meta['unit']} ({meta['doc']}), "
+                          f"got {value}")
+    if hi is not None and (value > hi or (meta.get("hi_open") and value == hi)):
+        rel = "<" if meta.get("hi_open") else "<="
+        raise ConfigError(f"{path}: must be {rel} {hi} {meta['unit']} ({meta['doc']}), "
+                          f"got {value}")
+    return value
+
+
+def _nested_default(f):
+    """The default instance of a nested config dataclass field, else None."""
+    if f.default_factory is not dataclasses.MISSING:
+        value = f.default_factory()
+        return value if dataclasses.is_dataclass(value) else None
+    return f.default if dataclasses.is_dataclass(f.default) else None
+
+
+def from_mapping(cls, data, path):
+    """Build dataclass ``cls`` from a mapping, converting edge units and validating ranges."""
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: expected a mapping, got {type(data).__name__}")
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    kwargs = {}
+    for key, value in data.items():
+        name, factor = key, 1.0
+        if key not in fields:
+            for edge, si, fac in _EDGE_UNITS:
+                if key.endswith(edge) and key[: -len(edge)] + si in fields:
+                    name, factor = key[: -len(edge)] + si, fac
+                    break
+            else:
+                known = ", ".join(sorted(fields))
+                raise ConfigError(f"{path}.{key}: unknown key (known: {known})")
+        if name in kwargs:
+            raise ConfigError(f"{path}.{key}: given twice (also as {name})")
+        f = fields[name]
+        sub = f"{path}.{key}"
+        nested = _nested_default(f)
+        if nested is not None:
+            kwargs[name] = from_mapping(type(nested), value, sub)
+            continue
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            value = value * factor if factor != 1.0 else value
+        kwargs[name] = _check_value(sub, f, value)
+    obj = cls(**kwargs)
+    validate(obj, path)
+    return obj
+
+
+def validate(obj, path):
+    """Range-check every field of a config dataclass (also defaults and programmatic values)."""
+    for f in dataclasses.fields(obj):
+        value = getattr(obj, f.name)
+        if dataclasses.is_dataclass(value):
+            validate(value, f"{path}.{f.name}")
+        elif "unit" in f.metadata:
+            _check_value(f"{path}.{f.name}", f, value)
+    check = getattr(obj, "check", None)
+    if check is not None:
+        check(path)
+
+
+def to_mapping(obj):
+    """Plain-dict form of a config dataclass (SI keys), e.g. for JSON reports."""
+    return dataclasses.asdict(obj)
+
+
+def load_yaml(path):
+    """Read a YAML file with safe_load; a missing file or a syntax error is a ConfigError."""
+    p = Path(path)
+    try:
+        text = p.read_text()
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read config ({exc.strerror})") from exc
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{path}: not valid YAML ({exc})") from exc
+    return {} if data is None else data
+
+
+@dataclasses.dataclass(frozen=True)
+class LinearBearingConfig:
+    """Four-point-contact linear ball bearing module of the paper's Sec. 2 (Table 1)."""
+
+    ball_radius_m: float = field(5e-3, "m", "ball radius R_B", lo=0.0, lo_open=True)
+    conformity: float = field(0.56, "1", "groove radius / ball diameter", lo=0.5, hi=1.0,
+                              lo_open=True)
+    youngs_modulus_pa: float = field(210e9, "Pa", "Young's modulus of balls and rails",
+                                     lo=0.0, lo_open=True)
+    poisson_ratio: float = field(0.28, "1", "Poisson's ratio", lo=0.0, hi=0.5, hi_open=True)
+    friction_coefficient: float = field(0.1, "1", "Coulomb coefficient mu, metal on metal",
+                                        lo=0.0, hi=1.0, lo_open=True)
+    nominal_contact_angle_rad: float = field(math.radians(45.0), "rad", "nominal contact "
+                                             "angle beta_0", lo=0.0, hi=math.pi / 2,
+                                             lo_open=True, hi_open=True)
+    vertical_load_n: float = field(100.0, "N", "vertical load N_y on each ball", lo=0.0,
+                                   lo_open=True)
+    side_force_ratio: float = field(-0.6, "1", "rho = N_x / N_y on ball 1 (ball 2: -rho)",
+                                    lo=-1.0, hi=1.0, lo_open=True, hi_open=True)
+    groove_velocity_m_s: float = field(10e-3, "m/s", "velocity v of the top groove", lo=0.0,
+                                       lo_open=True)
+    k_f: float = field(1.38, "1", "slope of the linearised friction force, Eq. (14); the "
+                       "paper's value", lo=0.0, lo_open=True)
+    b2b_gap_tolerance_m: float = field(1e-9, "m", "gap below which two balls count as "
+                                       "touching", lo=0.0)
+    solver_tolerance: float = field(1e-12, "1", "Newton residual tolerance, relative to "
+                                    "mu N_y", lo=0.0, lo_open=True, hi=1e-3)
+    min_contact_load_n: float = field(1e-6, "N", "a contact with less load is unloaded: "
+                                      "result flagged two-point", lo=0.0)
+    map_nodes: int = field(4096, "1", "nodes of the tabulated friction map", lo=256,
+                           hi=1 << 20)
+    # Sec. 2.4.1 statics: 'rigid' solves each ball's and its top groove's equilibrium with
+    # the deviated angles; 'diagonal' uses the paper's F_BL = F_TR = sqrt(2)/2 (N_y - N_x).
+    contact_force_model: str = dataclasses.field(default="rigid")
+
+    def check(self, path):
+        """Cross-field checks."""
+        if self.contact_force_model not in ("rigid", "diagonal"):
+            raise ConfigError(f"{path}.contact_force_model: must be 'rigid' or 'diagonal', "
+                              f"got {self.contact_force_model!r}")
+
+
+def load_linear_bearing(path=None, overrides=None):
+    """LinearBearingConfig from YAML (key ``linear_bearing``) and/or a dict of overrides."""
+    data = {}
+    if path is not None:
+        raw = load_yaml(path)
+        data = dict(raw.get("linear_bearing", raw))
+    data.update(overrides or {})
+    return from_mapping(LinearBearingConfig, data, "linear_bearing")

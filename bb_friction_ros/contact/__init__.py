@@ -1,0 +1,1 @@
+"""Contact mechanics: Hertz ellipses and Coulomb friction maps over them (paper Appendix)."""
