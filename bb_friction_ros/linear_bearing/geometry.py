@@ -1,0 +1,47 @@
+"""Cross-section geometry and rigid statics of a ball between bottom rail and top carriage.
+
+Contact order everywhere: BL, BR, TR, TL (bottom/top, left/right; paper Fig. 2).  Angles
+beta_i are measured from the -y axis (bottom) or +y axis (top) to the contact normal.
+Global frame: x across, y up, z along the rail (the top groove moves at +v along z).
+"""
+
+import numpy as np
+
+CONTACTS = ("BL", "BR", "TR", "TL")
+TOP = np.array([False, False, True, True])
+
+
+def deviated_contact_angles(beta0_rad, dbeta_bl, dbeta_br, dbeta_tr, dbeta_tl):
+    """Eq. (18): beta_i = beta_0 + delta beta_i, in contact order  [rad]."""
+    return beta0_rad + np.array([dbeta_bl, dbeta_br, dbeta_tr, dbeta_tl], dtype=float)
+
+
+def outward_normals(beta_rad):
+    """Unit vectors from the ball centre to the four contact points, shape (4, 2) (x, y)."""
+    b = np.asarray(beta_rad, dtype=float)
+    sx = np.array([-1.0, 1.0, 1.0, -1.0])
+    sy = np.array([-1.0, -1.0, 1.0, 1.0])
+    return np.stack([sx * np.sin(b), sy * np.cos(b)], axis=-1)
+
+
+def contact_forces_rigid(beta_rad, side_force_n, vertical_load_n):
+    """Normal contact loads from rigid statics of the top groove and of the ball  [N].
+
+    The external load (N_x, -N_y) acts on the top groove, which rests on the ball at TR, TL;
+    the ball rests on the bottom rail at BL, BR.  Two 2x2 systems, exact for any deviation.
+    """
+    n = outward_normals(beta_rad)
+    # top groove: F_TR n_TR + F_TL n_TL (push of the ball on the groove) = -(N_x, -N_y)
+    rhs = np.array([-side_force_n, vertical_load_n], dtype=float)
+    f_top = np.linalg.solve(n[2:].T, rhs)
+    # ball: F_BL n_BL + F_BR n_BR = -(F_TR n_TR + F_TL n_TL) (loads push toward the centre)
+    f_bottom = np.linalg.solve(n[:2].T, -rhs)
+    return np.concatenate([f_bottom, f_top])
+
+
+def contact_forces_diagonal(beta0_rad, side_force_n, vertical_load_n):
+    """Sec. 2.4.1 approximation: F_BL = F_TR = F_U and F_BR = F_TL = F_D at nominal angles."""
+    half_y = 0.5 * vertical_load_n / np.cos(beta0_rad)
+    half_x = 0.5 * side_force_n / np.sin(beta0_rad)
+    f_u, f_d = half_y - half_x, half_y + half_x
+    return np.array([f_u, f_d, f_u, f_d])
