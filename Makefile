@@ -1,0 +1,29 @@
+# bb_friction_ros: `make test` and `make demo` are the only commands a newcomer needs; both set
+# up .venv first when needed (tools/setup_venv.py, a fast no-op once set up).
+
+PYTHON ?= python3.11
+VENV := .venv
+
+# A bootstrap guard inherited from another ROS-wheels venv would stop .venv's python from
+# setting its own LD_LIBRARY_PATH.
+unexport _ROS_WHEELS_BOOTSTRAP_COMPLETE
+
+.PHONY: setup test demo clean distclean
+
+setup:
+	@$(PYTHON) tools/setup_venv.py
+
+test: setup
+	$(VENV)/bin/python -m pytest -q test
+
+demo: setup
+	$(VENV)/bin/bb-friction reproduce --out out/reproduce
+
+# Build products and outputs; keeps .venv (see distclean).
+clean:
+	rm -rf build out .pytest_cache *.egg-info
+	find . -path ./.venv -prune -o -name __pycache__ -type d -prune -exec rm -rf {} +
+
+# Everything generated, including .venv: the next make test sets up from scratch.
+distclean: clean
+	rm -rf $(VENV)

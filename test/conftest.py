@@ -1,0 +1,44 @@
+"""Shared pytest set-up for all tests of bb_friction_ros.
+
+DDS isolation: every test session keeps its ROS 2 traffic on this machine
+(``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``) and on its own ``ROS_DOMAIN_ID`` (1..101, from the
+pid), so parallel test runs on one machine do not hear each other. Both are set here, at import
+time, before any test can call ``rclpy.init()``; child processes started by tests inherit them.
+
+Fixtures for tests that need ROS 2 (rclpy is imported lazily, so tests of the pure-Python physics
+core do not depend on it):
+
+- ``ros_context``: an initialised ``rclpy.Context`` of the test's own, shut down afterwards.
+- ``repo_root``: the repository root as a ``pathlib.Path``.
+"""
+
+import os
+import pathlib
+
+import pytest
+
+ROS_DOMAIN_ID = 1 + os.getpid() % 101
+os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+os.environ['ROS_DOMAIN_ID'] = str(ROS_DOMAIN_ID)
+
+REPO_ROOT = pathlib.Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture(scope='session')
+def repo_root():
+    """Return the repository root."""
+    return REPO_ROOT
+
+
+@pytest.fixture
+def ros_context():
+    """Yield an initialised rclpy context private to the test; shut it down afterwards."""
+    import rclpy
+
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        yield context
+    finally:
+        if context.ok():
+            rclpy.shutdown(context=context)

@@ -1,0 +1,156 @@
+"""package.xml, setup.py and the code agree: name, version, dependencies, installed files."""
+
+import ast
+import importlib
+import os
+import pathlib
+import runpy
+import sys
+import xml.etree.ElementTree as ET
+from unittest import mock
+
+import pytest
+
+import bb_friction_ros
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+PACKAGE = 'bb_friction_ros'
+
+# Top-level Python module -> rosdep key that provides it. An import of a module missing here
+# fails test_package_xml_declares_runtime_deps: add the module and its rosdep key, and declare the
+# key as <exec_depend> in package.xml.
+ROSDEP_KEYS = {
+    'numpy': 'python3-numpy',
+    'scipy': 'python3-scipy',
+    'matplotlib': 'python3-matplotlib',
+    'yaml': 'python3-yaml',
+    'tqdm': 'python3-tqdm',
+    'rclpy': 'rclpy',
+    'builtin_interfaces': 'builtin_interfaces',
+    'std_msgs': 'std_msgs',
+    'geometry_msgs': 'geometry_msgs',
+    'sensor_msgs': 'sensor_msgs',
+    'diagnostic_msgs': 'diagnostic_msgs',
+    'bb_friction_msgs': 'bb_friction_msgs',
+}
+
+
+def read_package_xml(path):
+    """Return the root element of a package.xml."""
+    return ET.parse(path).getroot()
+
+
+def depends(root, *tags):
+    """Return the dependency names declared with any of tags (depend counts for all)."""
+    return {e.text.strip() for tag in tags + ('depend',) for e in root.findall(tag)}
+
+
+@pytest.fixture(scope='module')
+def package_xml():
+    return read_package_xml(ROOT / 'package.xml')
+
+
+@pytest.fixture(scope='module')
+def setup_kwargs():
+    """Run setup.py as colcon and pip do (from the repository root), capturing setup()'s kwargs."""
+    captured = {}
+    cwd = os.getcwd()
+    os.chdir(ROOT)
+    try:
+        with mock.patch('setuptools.setup', side_effect=captured.update):
+            runpy.run_path(str(ROOT / 'setup.py'), run_name='__main__')
+    finally:
+        os.chdir(cwd)
+    return captured
+
+
+def console_scripts(setup_kwargs):
+    """Return {script name: 'module:function'} of setup.py's console_scripts."""
+    scripts = {}
+    for spec in setup_kwargs['entry_points']['console_scripts']:
+        name, target = (s.strip() for s in spec.split('='))
+        scripts[name] = target
+    return scripts
+
+
+def test_package_xml_is_ament_python_format_3(package_xml):
+    assert package_xml.tag == 'package'
+    assert package_xml.get('format') == '3'
+    assert package_xml.findtext('name') == PACKAGE
+    assert package_xml.findtext('export/build_type') == 'ament_python'
+    assert package_xml.findtext('license') == 'Apache-2.0'
+    assert (ROOT / 'LICENSE').is_file()
+
+
+def test_name_and_version_agree(package_xml, setup_kwargs):
+    assert setup_kwargs['name'] == package_xml.findtext('name') == PACKAGE
+    assert setup_kwargs['version'] == package_xml.findtext('version') == bb_friction_ros.__version__
+
+
+def test_console_scripts_exist(setup_kwargs):
+    scripts = console_scripts(setup_kwargs)
+    assert scripts['bb-friction'] == 'bb_friction_ros.cli:main'
+    for name, target in scripts.items():
+        module, function = target.split(':')
+        assert callable(getattr(importlib.import_module(module), function)), name
+
+
+def imported_top_level_modules(directory):
+    """Return {top-level module: first file importing it} over all .py files under directory."""
+    found = {}
+    for path in sorted(directory.rglob('*.py')):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.level == 0:
+                names = [node.module]
+            else:
+                continue
+            for name in names:
+                found.setdefault(name.split('.')[0], path.relative_to(ROOT))
+    return found
+
+
+def test_package_xml_declares_runtime_deps(package_xml, setup_kwargs):
+    # The console scripts (and the node) run code from anywhere in the package: every
+    # third-party module it imports must be an exec_depend of package.xml.
+    for target in console_scripts(setup_kwargs).values():
+        assert target.split('.')[0] == PACKAGE
+    declared = depends(package_xml, 'exec_depend')
+    problems = []
+    for module, where in sorted(imported_top_level_modules(ROOT / PACKAGE).items()):
+        if module == PACKAGE or module in sys.stdlib_module_names:
+            continue
+        key = ROSDEP_KEYS.get(module)
+        if key is None:
+            problems.append(f'{where} imports {module!r}: add its rosdep key to ROSDEP_KEYS '
+                            'in this test and an <exec_depend> to package.xml')
+        elif key not in declared:
+            problems.append(f'{where} imports {module!r}: package.xml lacks '
+                            f'<exec_depend>{key}</exec_depend>')
+    assert not problems, '\n'.join(problems)
+    # The ROS interfaces the node uses, declared from the start.
+    assert {'rclpy', 'std_msgs', 'geometry_msgs', 'sensor_msgs', 'diagnostic_msgs',
+            'bb_friction_msgs'} <= declared
+
+
+def test_data_files(setup_kwargs):
+    data_files = {dest: set(files) for dest, files in setup_kwargs['data_files']}
+    assert data_files['share/ament_index/resource_index/packages'] == {f'resource/{PACKAGE}'}
+    assert (ROOT / 'resource' / PACKAGE).is_file()
+    assert 'package.xml' in data_files[f'share/{PACKAGE}']
+    configs = {str(p.relative_to(ROOT)) for p in (ROOT / 'config').glob('*.yaml')}
+    assert data_files[f'share/{PACKAGE}/config'] == configs
+
+
+def test_interface_package(package_xml):
+    msgs_xml = read_package_xml(ROOT / 'msg_defs' / 'bb_friction_msgs' / 'package.xml')
+    assert msgs_xml.get('format') == '3'
+    assert msgs_xml.findtext('name') == 'bb_friction_msgs'
+    assert msgs_xml.findtext('export/build_type') == 'ament_cmake'
+    assert msgs_xml.findtext('member_of_group') == 'rosidl_interface_packages'
+    assert 'std_msgs' in depends(msgs_xml, 'build_depend', 'exec_depend')
+    # Every .msg file is generated.
+    cmake = (ROOT / 'msg_defs' / 'bb_friction_msgs' / 'CMakeLists.txt').read_text()
+    for msg in (ROOT / 'msg_defs' / 'bb_friction_msgs' / 'msg').glob('*.msg'):
+        assert f'"msg/{msg.name}"' in cmake
