@@ -48,13 +48,14 @@ def _check_value(path, f, value):
     if not math.isfinite(value):
         raise ConfigError(f"{path}: must be finite, got {value!r}")
     lo, hi = meta.get("lo"), meta.get("hi")
+    unit = "" if meta.get("unit") in (None, "1") else " " + meta["unit"]
     if lo is not None and (value < lo or (meta.get("lo_open") and value == lo)):
         rel = ">" if meta.get("lo_open") else ">="
-        raise ConfigError(f"{path}: must be {rel} {lo} {meta['unit']} ({meta['doc']}), "
+        raise ConfigError(f"{path}: must be {rel} {lo}{unit} ({meta['doc']}), "
                           f"got {value}")
     if hi is not None and (value > hi or (meta.get("hi_open") and value == hi)):
         rel = "<" if meta.get("hi_open") else "<="
-        raise ConfigError(f"{path}: must be {rel} {hi} {meta['unit']} ({meta['doc']}), "
+        raise ConfigError(f"{path}: must be {rel} {hi}{unit} ({meta['doc']}), "
                           f"got {value}")
     return value
 

@@ -1,0 +1,159 @@
+"""The two-ball case of Sec. 2.4 (Fig. 7), numerical and analytical, and its theta x rho maps.
+
+Setup: the bottom groove deviates by theta (dbeta_BL = -theta, dbeta_BR = +theta); the top
+groove by (dbeta_TR, dbeta_TL).  Ball 1 is behind and carries N_x = +rho N_y, ball 2 in
+front carries -rho N_y, both N_y.  The balls are taken as touching, so B2B contact forms
+exactly when ball 1 is faster (Eq. 9).
+"""
+
+from dataclasses import dataclass
+import time
+
+import numpy as np
+
+from bb_friction_ros.linear_bearing import analytical as an
+from bb_friction_ros.linear_bearing.geometry import (contact_forces_diagonal,
+                                                     contact_forces_rigid,
+                                                     deviated_contact_angles)
+from bb_friction_ros.linear_bearing.numerical import LinearBearingModel
+
+
+@dataclass
+class PairResult:
+    """Outputs of one two-ball case; the first six keys are the CLI's JSON contract."""
+
+    eps: tuple                 # (eps_1, eps_2): each ball alone, fractions of v/2
+    f_b2b_n: float
+    p_f_w: float               # ball-groove loss of both balls without B2B
+    p_b2b_w: float
+    converged: bool
+    solve_time_s: float
+    p_f_with_b2b_w: float      # ball-groove loss of both balls once in contact
+    valid: bool                # False: a contact unloaded, or the analytical model's range left
+    notes: tuple               # why not valid, in words
+    model: str
+
+    def as_json(self):
+        """The CLI's ``--json`` object: contract keys first, then extras."""
+        return {"eps": [float(e) for e in self.eps], "f_b2b_n": float(self.f_b2b_n),
+                "p_f_w": float(self.p_f_w), "p_b2b_w": float(self.p_b2b_w),
+                "converged": bool(self.converged), "solve_time_s": float(self.solve_time_s),
+                "p_f_with_b2b_w": float(self.p_f_with_b2b_w),
+                "friction_increase": float(self.p_b2b_w / self.p_f_w) if self.p_f_w else None,
+                "valid": bool(self.valid), "notes": list(self.notes), "model": self.model}
+
+
+class LinearPairCase:
+    """Sec. 2.4 case studies for one LinearBearingConfig; the numerical model is built once."""
+
+    def __init__(self, cfg):
+        """Keep the config; the friction map is built (or loaded) on first numerical use."""
+        self.cfg = cfg
+        self._model = None
+
+    @property
+    def model(self):
+        """The numerical LinearBearingModel (friction map built lazily)."""
+        if self._model is None:
+            self._model = LinearBearingModel(self.cfg)
+        return self._model
+
+    def _dbeta(self, theta_rad, dbeta_tr_rad, dbeta_tl_rad):
+        return np.array([-theta_rad, theta_rad, dbeta_tr_rad, dbeta_tl_rad], dtype=float)
+
+    def loads(self, beta_rad, side_force_n):
+        """Contact loads of one ball by the configured statics model  [N]."""
+        cfg = self.cfg
+        if cfg.contact_force_model == "diagonal":
+            return contact_forces_diagonal(cfg.nominal_contact_angle_rad, side_force_n,
+                                           cfg.vertical_load_n)
+        return contact_forces_rigid(beta_rad, side_force_n, cfg.vertical_load_n)
+
+    def numerical(self, theta_rad, rho, dbeta_tr_rad=0.0, dbeta_tl_rad=0.0):
+        """Low-order numerical model (Eqs. 1-10) of the two-ball case."""
+        t0 = time.perf_counter()
+        cfg, m = self.cfg, self.model
+        dbeta = self._dbeta(theta_rad, dbeta_tr_rad, dbeta_tl_rad)
+        beta = deviated_contact_angles(cfg.nominal_contact_angle_rad, *dbeta)
+        ny = cfg.vertical_load_n
+        notes = []
+        balls = []
+        for name, nx in (("ball 1", rho * ny), ("ball 2", -rho * ny)):
+            q = self.loads(beta, nx)
+            if np.any(q <= cfg.min_contact_load_n):
+                notes.append(f"{name}: contact(s) {_names(q <= cfg.min_contact_load_n)} "
+                             "unloaded (two-point contact)")
+            balls.append(m.ball(beta, q))
+        row = m.solve_row(balls, [0.0])
+        v_half = 0.5 * cfg.groove_velocity_m_s
+        eps = tuple(s.balls[0].v_b_m_s / v_half - 1.0 for s in row.free)
+        p_f = sum(float(s.balls[0].loss_w.sum()) for s in row.free)
+        p_b2b = sum(float(s.b2b_loss_w.sum()) for s in row.solutions)
+        f_b2b = sum(float(s.b2b_force_n.sum()) for s in row.solutions)
+        p_f_c = sum(float(b.loss_w.sum()) for s in row.solutions for b in s.balls)
+        converged = row.converged and all(s.converged for s in row.free)
+        if not converged:
+            notes.append("solver did not converge")
+        return PairResult(eps, f_b2b, p_f, p_b2b, converged, time.perf_counter() - t0, p_f_c,
+                          not notes, tuple(notes), "numerical")
+
+    def analytical(self, theta_rad, rho, dbeta_tr_rad=0.0, dbeta_tl_rad=0.0):
+        """Analytical model (Eqs. 22, 30, 32) with the paper's diagonal loads; vectorised."""
+        t0 = time.perf_counter()
+        cfg = self.cfg
+        theta, rho_, tr, tl = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (
+            theta_rad, rho, dbeta_tr_rad, dbeta_tl_rad)))
+        dbeta = np.stack([-theta, theta, tr, tl], axis=-1)
+        b0, ny = cfg.nominal_contact_angle_rad, cfg.vertical_load_n
+        hz = self.hertz()
+        psi = hz.psi(cfg.ball_radius_m)
+        f1 = np.moveaxis(contact_forces_diagonal(b0, rho_ * ny, ny), 0, -1)
+        f2 = np.moveaxis(contact_forces_diagonal(b0, -rho_ * ny, ny), 0, -1)
+        eps1 = an.velocity_deviation_eq22(dbeta, f1[..., 0], f1[..., 1], b0)
+        eps2 = an.velocity_deviation_eq22(dbeta, f2[..., 0], f2[..., 1], b0)
+        force = an.b2b_force_eq30(eps1, eps2, f1[..., :2], f2[..., :2], cfg.ball_radius_m, psi,
+                                  b0, cfg.friction_coefficient, cfg.k_f)
+        p_b2b = an.b2b_loss_eq32(force, cfg.groove_velocity_m_s, b0, cfg.friction_coefficient)
+        p_f = sum(an.groove_loss_pure_spin(f, hz.semi_axes(f)[0], hz.ellipticity,
+                                           cfg.groove_velocity_m_s, b0, cfg.ball_radius_m,
+                                           cfg.friction_coefficient) for f in (f1, f2))
+        # Validity (Sec. 2.3.2, Appendix): four-point contact and |d_eta| within the linear
+        # range |c/a| < 0.5.
+        four_point = (f1.min(axis=-1) > 0) & (f2.min(axis=-1) > 0)
+        elapsed = time.perf_counter() - t0
+        if np.ndim(eps1) == 0:
+            notes = () if four_point else ("a contact unloads: outside the analytical model",)
+            return PairResult((float(eps1), float(eps2)), float(force), float(p_f),
+                              float(p_b2b), True, elapsed, float(p_f), bool(four_point), notes,
+                              "analytical")
+        return {"eps1": eps1, "eps2": eps2, "f_b2b_n": force, "p_f_w": p_f, "p_b2b_w": p_b2b,
+                "valid": four_point, "solve_time_s": elapsed}
+
+    def hertz(self):
+        """Hertz contact of the configured ball and groove."""
+        from bb_friction_ros.contact.hertz import HertzContact
+        cfg = self.cfg
+        return HertzContact.ball_in_straight_groove(cfg.ball_radius_m, cfg.conformity,
+                                                    cfg.youngs_modulus_pa, cfg.poisson_ratio)
+
+    def numerical_grid(self, theta_rad, rho):
+        """Figs. 8(a), 9(a), 9(c): numerical model over a theta x rho grid (1-D axes)."""
+        shape = (len(rho), len(theta_rad))
+        out = {k: np.zeros(shape) for k in ("eps1", "eps2", "f_b2b_n", "p_f_w", "p_b2b_w")}
+        out["converged"] = np.zeros(shape, dtype=bool)
+        out["valid"] = np.zeros(shape, dtype=bool)
+        for i, r in enumerate(rho):
+            for j, t in enumerate(theta_rad):
+                res = self.numerical(t, r)
+                out["eps1"][i, j], out["eps2"][i, j] = res.eps
+                out["f_b2b_n"][i, j] = res.f_b2b_n
+                out["p_f_w"][i, j] = res.p_f_w
+                out["p_b2b_w"][i, j] = res.p_b2b_w
+                out["converged"][i, j] = res.converged
+                out["valid"][i, j] = res.valid
+        return out
+
+
+def _names(mask):
+    from bb_friction_ros.linear_bearing.geometry import CONTACTS
+    return ",".join(c for c, m in zip(CONTACTS, mask) if m)
