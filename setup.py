@@ -21,6 +21,7 @@ setup(
     maintainer_email='maintainers@users.noreply.h-seed-0c5ad298.example',
     description='Ball-screw friction prediction with ball-to-ball contact friction.',
     license='Apache-2.0',
+    extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
             'bb-friction = bb_friction_ros.cli:main',

@@ -84,7 +84,8 @@ def test_package_xml_is_ament_python_format_3(package_xml):
 
 def test_name_and_version_agree(package_xml, setup_kwargs):
     assert setup_kwargs['name'] == package_xml.findtext('name') == PACKAGE
-    assert setup_kwargs['version'] == package_xml.findtext('version') == bb_friction_ros.__version__
+    version = package_xml.findtext('version')
+    assert setup_kwargs['version'] == version == bb_friction_ros.__version__
 
 
 def test_console_scripts_exist(setup_kwargs):

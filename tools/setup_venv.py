@@ -239,7 +239,7 @@ def lock():
     if not os.path.exists(VENV_PY):
         run([sys.executable, '-m', 'venv', VENV], 'creating the virtual environment')
     report = os.path.join(BUILD, 'pip-report.json')
-    os.makedirs(BUILD, exist_ok=True)
+    touch_ignore_markers(BUILD)
     log('resolving requirements.txt (pip install --dry-run --report)')
     run(PIP + ['install', '-q', '--dry-run', '--ignore-installed', '--report', report,
                '-r', REQUIREMENTS], 'resolving requirements.txt')
@@ -274,7 +274,7 @@ def main(argv=None):
         return
 
     start = time.monotonic()
-    os.makedirs(BUILD, exist_ok=True)
+    touch_ignore_markers(BUILD)
     with open(os.path.join(BUILD, '.setup.lock'), 'w') as lock_file:
         fcntl.flock(lock_file, fcntl.LOCK_EX)  # one set-up at a time per checkout
         stamp = {} if args.force else read_stamp()
