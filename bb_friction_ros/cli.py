@@ -55,6 +55,8 @@ def _run_linear(args):
               math.radians(args.dbeta_tr_deg), math.radians(args.dbeta_tl_deg))
     if args.json:
         print(json.dumps(res.as_json()))
+    elif not res.converged:
+        print("NOT CONVERGED: " + "; ".join(res.notes), file=sys.stderr)
     else:
         rows = [("model", res.model),
                 ("eps_1 (ball 1 alone)", f"{res.eps[0] * 100:+.4f} %"),

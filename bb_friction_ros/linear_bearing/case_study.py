@@ -34,12 +34,18 @@ class PairResult:
     model: str
 
     def as_json(self):
-        """The CLI's ``--json`` object: contract keys first, then extras."""
-        return {"eps": [float(e) for e in self.eps], "f_b2b_n": float(self.f_b2b_n),
-                "p_f_w": float(self.p_f_w), "p_b2b_w": float(self.p_b2b_w),
+        """The CLI's ``--json`` object: contract keys first, then extras.
+
+        An unconverged solve's last iterate is no result: its numbers are null.
+        """
+        def num(x):
+            return float(x) if self.converged else None
+
+        return {"eps": [num(e) for e in self.eps], "f_b2b_n": num(self.f_b2b_n),
+                "p_f_w": num(self.p_f_w), "p_b2b_w": num(self.p_b2b_w),
                 "converged": bool(self.converged), "solve_time_s": float(self.solve_time_s),
-                "p_f_with_b2b_w": float(self.p_f_with_b2b_w),
-                "friction_increase": float(self.p_b2b_w / self.p_f_w) if self.p_f_w else None,
+                "p_f_with_b2b_w": num(self.p_f_with_b2b_w),
+                "friction_increase": num(self.p_b2b_w / self.p_f_w) if self.p_f_w else None,
                 "valid": bool(self.valid), "notes": list(self.notes), "model": self.model}
 
 

@@ -82,6 +82,10 @@ class LinearBearingModel:
 
     # --- kinematics and equilibrium of a group -------------------------------------------
     def _residual(self, balls, z, v, jacobian=True):
+        with np.errstate(over="ignore", invalid="ignore"):
+            return self._residual_impl(balls, z, v, jacobian)
+
+    def _residual_impl(self, balls, z, v, jacobian):
         """Scaled equilibrium residuals (3 per ball) and their Jacobian for a group.
 
         z = [v_B/v, (w_x R/v, w_y R/v) per ball, F_B2B/(mu Q_ref) per contact].

@@ -1,0 +1,55 @@
+"""Hertz contact: Table 1 and the classical limits."""
+
+import math
+
+import numpy as np
+import pytest
+
+from bb_friction_ros.contact.hertz import HertzContact, effective_modulus
+
+TABLE1 = dict(ball_radius_m=5e-3, conformity=0.56, youngs_modulus_pa=210e9, poisson_ratio=0.28)
+
+
+def test_table1_psi():
+    """Table 1: Psi = 5.307e-4 (m^2/N)^(1/3); printed to 4 digits, so 0.02 % tolerance."""
+    hz = HertzContact.ball_in_straight_groove(**TABLE1)
+    assert hz.psi(TABLE1["ball_radius_m"]) == pytest.approx(5.307e-4, rel=2e-4)
+
+
+def test_table1_b_over_a():
+    """b/a for conf 0.56: Hamrock-Brewe's fit k = 1.0339 (R_y/R_x)^0.636 is good to ~3 %."""
+    hz = HertzContact.ball_in_straight_groove(**TABLE1)
+    r_b = TABLE1["ball_radius_m"]
+    r_across = 1.0 / (1.0 / r_b - 1.0 / (2 * 0.56 * r_b))
+    assert hz.ellipticity == pytest.approx(1.0 / (1.0339 * (r_across / r_b) ** 0.636), rel=0.03)
+    assert hz.ellipticity == pytest.approx(0.2321, abs=1e-4)   # our exact value, regression
+
+
+def test_ball_on_flat_limit():
+    """Equal curvatures give a circle: a = (3 Q R / (4 E*))^(1/3), delta = a^2 / R."""
+    r, q = 5e-3, 100.0
+    e_star = effective_modulus(210e9, 0.28)
+    hz = HertzContact.from_curvatures(1.0 / r, 1.0 / r, e_star)
+    a, b = hz.semi_axes(q)
+    assert hz.ellipticity == 1.0
+    assert a == pytest.approx((3 * q * r / (4 * e_star)) ** (1 / 3), rel=1e-9)
+    assert hz.approach(q) == pytest.approx(a * a / r, rel=1e-6)
+
+
+def test_load_balance_and_stiffness():
+    """Integral of the Hertz pressure is the load; stiffness is d(load)/d(approach)."""
+    hz = HertzContact.ball_in_straight_groove(**TABLE1)
+    q = np.array([1.0, 50.0, 500.0])
+    a, b = hz.semi_axes(q)
+    assert np.allclose(2.0 / 3.0 * math.pi * a * b * hz.peak_pressure(q), q, rtol=1e-12)
+    d = hz.approach(q)
+    assert np.allclose(hz.load_from_approach(d), q, rtol=1e-12)
+    h = 1e-9 * d
+    fd = (hz.load_from_approach(d + h) - hz.load_from_approach(d - h)) / (2 * h)
+    assert np.allclose(hz.stiffness(q), fd, rtol=1e-6)
+
+
+def test_groove_wider_than_ball_refused():
+    """A groove tighter than the ball has no Hertz solution: refused, not a silent number."""
+    with pytest.raises(ValueError, match="curv"):
+        HertzContact.ball_in_straight_groove(5e-3, 0.45, 210e9, 0.28)

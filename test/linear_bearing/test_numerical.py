@@ -1,0 +1,159 @@
+"""Low-order numerical model (Eqs. 1-10): paper values and physical invariants."""
+
+import math
+
+import numpy as np
+import pytest
+
+from bb_friction_ros.config import load_linear_bearing
+from bb_friction_ros.linear_bearing.case_study import LinearPairCase
+from bb_friction_ros.linear_bearing.geometry import (contact_forces_diagonal,
+                                                     contact_forces_rigid,
+                                                     deviated_contact_angles)
+from bb_friction_ros.linear_bearing.numerical import LinearBearingModel
+
+THETA = math.radians(2.0)
+
+
+@pytest.fixture(scope="module")
+def cfg():
+    return load_linear_bearing()
+
+
+@pytest.fixture(scope="module")
+def model(cfg):
+    return LinearBearingModel(cfg)
+
+
+def make_ball(model, cfg, theta, rho, tr=0.0, tl=0.0):
+    beta = deviated_contact_angles(cfg.nominal_contact_angle_rad, -theta, theta, tr, tl)
+    return model.ball(beta, contact_forces_rigid(beta, rho * cfg.vertical_load_n,
+                                                 cfg.vertical_load_n))
+
+
+def eps_of(sol, cfg):
+    return sol.balls[0].v_b_m_s / (0.5 * cfg.groove_velocity_m_s) - 1.0
+
+
+def drive_and_losses(sol, cfg):
+    """v x (z-friction the top groove exerts on the balls), and the sum of all losses."""
+    drive = cfg.groove_velocity_m_s * sum(b.friction_n[2:].sum() for b in sol.balls)
+    return drive, sum(b.loss_w.sum() for b in sol.balls) + sol.b2b_loss_w.sum()
+
+
+def test_rigid_statics_balance_and_diagonal_limit(cfg):
+    """Loads balance the ball and the top groove; without deviation they are the diagonal loads."""
+    beta = deviated_contact_angles(cfg.nominal_contact_angle_rad, -THETA, THETA, 0.0, 0.0)
+    q = contact_forces_rigid(beta, -60.0, 100.0)
+    from bb_friction_ros.linear_bearing.geometry import outward_normals
+    n = outward_normals(beta)
+    assert np.allclose((q[:, None] * n).sum(axis=0), 0.0, atol=1e-12)
+    assert np.allclose(-(q[2:, None] * n[2:]).sum(axis=0), [-60.0, -100.0], atol=1e-12)
+    beta0 = np.full(4, cfg.nominal_contact_angle_rad)
+    assert np.allclose(contact_forces_rigid(beta0, -60.0, 100.0),
+                       contact_forces_diagonal(cfg.nominal_contact_angle_rad, -60.0, 100.0))
+
+
+def test_table2_numerical_eps(model, cfg):
+    """Table 2 (a): numerical eps_1 = 0.87 %, tolerance 0.03 pt (the paper prints 2 decimals)."""
+    sol = model.solve_ball(make_ball(model, cfg, THETA, -0.6))
+    assert sol.converged
+    assert eps_of(sol, cfg) * 100 == pytest.approx(0.87, abs=0.03)
+
+
+def test_table3_b2b_force_numerical(model, cfg):
+    """Table 3 (a): numerical F_B2B = 4.01 N (FEA 3.96 N); 2 % tolerance."""
+    balls = [make_ball(model, cfg, THETA, -0.6), make_ball(model, cfg, THETA, 0.6)]
+    sol = model.solve_group(balls)
+    assert sol.converged
+    assert sol.b2b_force_n[0] == pytest.approx(4.01, rel=0.02)
+
+
+def test_table2_case_b_no_contact(model, cfg):
+    """Table 2/3 (b): matched top deviations give eps = 0 and no B2B force."""
+    balls = [make_ball(model, cfg, THETA, r, -THETA, THETA) for r in (-0.6, 0.6)]
+    row = model.solve_row(balls, [0.0])
+    assert row.converged
+    assert [len(g) for g in row.groups] == [1, 1]
+    for s in row.free:
+        assert abs(eps_of(s, cfg)) < 1e-12
+
+
+@pytest.mark.parametrize("theta_deg,rho", [(2.0, -0.6), (-3.0, 0.6), (1.0, 0.3), (0.5, -0.1)])
+def test_power_balance(model, cfg, theta_deg, rho):
+    """Drive power v x F = sum of ball-groove losses + B2B loss, to 1e-9 relative."""
+    th = math.radians(theta_deg)
+    for balls in ([make_ball(model, cfg, th, rho)],
+                  [make_ball(model, cfg, th, rho), make_ball(model, cfg, th, -rho)]):
+        sol = model.solve_group(balls)
+        drive, losses = drive_and_losses(sol, cfg)
+        assert sol.converged
+        assert drive == pytest.approx(losses, rel=1e-9)
+        assert all(np.all(b.loss_w >= -1e-15) for b in sol.balls)
+
+
+def test_mirror_symmetry(model, cfg):
+    """Mirroring x maps (theta, rho) to (-theta, -rho): the ball speed is unchanged."""
+    for th, rho in ((THETA, -0.6), (math.radians(1.3), 0.2)):
+        a = model.solve_ball(make_ball(model, cfg, th, rho))
+        b = model.solve_ball(make_ball(model, cfg, -th, -rho))
+        assert eps_of(a, cfg) == pytest.approx(eps_of(b, cfg), abs=1e-12)
+
+
+@pytest.mark.parametrize("rho", [-0.6, 0.0, 0.45])
+def test_no_deviation_means_nominal_speed(model, cfg, rho):
+    """Insight (2) of Sec. 2.3.2: without contact-angle deviation, v_B = v/2 for any load."""
+    assert abs(eps_of(model.solve_ball(make_ball(model, cfg, 0.0, rho)), cfg)) < 1e-12
+
+
+def test_jacobian_matches_finite_differences(model, cfg):
+    """The analytic Newton Jacobian (including B2B friction terms) is the true derivative."""
+    balls = [make_ball(model, cfg, THETA, -0.6), make_ball(model, cfg, THETA, 0.2),
+             make_ball(model, cfg, THETA, 0.6)]
+    z = model.solve_group(balls).z
+    z = z + 0.01 * np.random.default_rng(0).normal(size=z.size)
+    v = cfg.groove_velocity_m_s
+    _, jac = model._residual(balls, z, v)
+    fd = np.zeros_like(jac)
+    for i in range(z.size):
+        e = np.zeros(z.size)
+        e[i] = 1e-7
+        fd[:, i] = (model._residual(balls, z + e, v, False)[0]
+                    - model._residual(balls, z - e, v, False)[0]) / 2e-7
+    assert np.abs(jac - fd).max() < 1e-6
+
+
+def test_row_complementarity(model, cfg):
+    """N balls in a row: forces >= 0, touching free pairs separate, groups share one speed."""
+    rhos = [-0.6, 0.4, -0.3, 0.6, -0.5, 0.1]
+    balls = [make_ball(model, cfg, THETA, r) for r in rhos]
+    gaps = [0.0, 0.0, 0.0, 1e-4, 0.0]
+    row = model.solve_row(balls, gaps)
+    assert row.converged
+    speed = np.empty(len(balls))
+    for grp, sol in zip(row.groups, row.solutions):
+        assert np.all(sol.b2b_force_n >= 0)
+        speed[grp] = sol.balls[0].v_b_m_s
+        assert all(b.v_b_m_s == sol.balls[0].v_b_m_s for b in sol.balls)
+        drive, losses = drive_and_losses(sol, cfg)
+        assert drive == pytest.approx(losses, rel=1e-9)
+    joined = {j for grp in row.groups for j in grp[:-1]}
+    for j in range(len(balls) - 1):
+        if j not in joined and gaps[j] == 0.0:
+            assert speed[j] <= speed[j + 1] + 1e-15
+    assert 3 not in joined            # the open gap never transmits force
+    assert any(len(g) > 1 for g in row.groups)
+
+
+def test_two_point_contact_is_flagged(cfg):
+    """A contact below the load threshold makes the result say so instead of a silent number."""
+    case = LinearPairCase(load_linear_bearing(overrides={"min_contact_load_n": 30.0}))
+    res = case.numerical(THETA, -0.6)
+    assert not res.valid
+    assert any("two-point" in n for n in res.notes)
+
+
+def test_nonconvergence_is_flagged(model, cfg):
+    """A solve stopped early reports converged = False."""
+    balls = [make_ball(model, cfg, THETA, -0.6), make_ball(model, cfg, THETA, 0.6)]
+    assert not model.solve_group(balls, max_iter=1).converged

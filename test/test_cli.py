@@ -1,0 +1,57 @@
+"""The bb-friction CLI: JSON contract keys, readable table, bad input, reproduce report."""
+
+import json
+
+import pytest
+
+from bb_friction_ros.cli import main
+
+LINEAR_KEYS = {"eps", "f_b2b_n", "p_f_w", "p_b2b_w", "converged", "solve_time_s"}
+
+
+def run(capsys, *argv):
+    code = main(list(argv))
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+@pytest.mark.parametrize("model", ["numerical", "analytical"])
+def test_linear_json_contract(capsys, model):
+    """--json prints exactly one JSON object with the issue's keys."""
+    code, out, _ = run(capsys, "linear", "--theta-deg", "2", "--rho", "-0.6", "--ny-n", "100",
+                       "--mu", "0.1", "--v-mm-s", "10", "--model", model, "--json")
+    assert code == 0
+    obj = json.loads(out)
+    assert LINEAR_KEYS <= set(obj)
+    assert len(obj["eps"]) == 2 and obj["converged"] is True
+    assert obj["f_b2b_n"] == pytest.approx(4.01 if model == "numerical" else 3.74, rel=0.02)
+
+
+def test_linear_table_and_case_b(capsys):
+    """Readable output; the matched case (b) prints no contact force."""
+    code, out, _ = run(capsys, "linear", "--dbeta-tr-deg", "-2", "--dbeta-tl-deg", "2")
+    assert code == 0 and "F_B2B" in out and "0.0000 N" in out
+
+
+@pytest.mark.parametrize("argv,key", [(["--rho", "1.2"], "side_force_ratio"),
+                                      (["--mu", "-0.1"], "friction_coefficient"),
+                                      (["--theta-deg", "nan"], "--theta-deg")])
+def test_linear_bad_input_names_the_field(capsys, argv, key):
+    """Bad input is refused with exit code 2 and the offending field named."""
+    code, _, err = run(capsys, "linear", *argv)
+    assert code == 2 and key in err
+
+
+def test_reproduce_writes_report(tmp_path, capsys):
+    """reproduce writes report.md, reproduction.json (paper, ours, deviation) and the PNGs."""
+    code, _, _ = run(capsys, "reproduce", "--out", str(tmp_path), "--grid", "5")
+    assert code == 0
+    data = json.loads((tmp_path / "reproduction.json").read_text())
+    rows = data["Linear ball bearing (Sec. 2)"]
+    assert {"paper", "ours", "deviation"} <= set(rows[0])
+    by_key = {r["quantity"]: r for r in rows}
+    assert by_key["f_an"]["ours"] == pytest.approx(3.74, rel=0.01)
+    for name in ("fig05_friction_maps", "fig08_velocity_difference",
+                 "fig09_b2b_force_and_loss", "fig10_relative_displacement"):
+        assert (tmp_path / f"{name}.png").stat().st_size > 10_000
+    assert "| f_num |" in (tmp_path / "report.md").read_text()
