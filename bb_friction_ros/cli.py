@@ -1,4 +1,5 @@
-"""Command-line interface: ``bb-friction <command>``.
+"""
+Command-line interface: ``bb-friction <command>``.
 
 Commands and their flags are contracts that users script against: add, never rename.
 """

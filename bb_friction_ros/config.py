@@ -1,4 +1,5 @@
-"""Validated configuration: frozen dataclasses with units in the field names, loaded from YAML.
+"""
+Validated configuration: frozen dataclasses with units in the field names, loaded from YAML.
 
 Inside the core every value is SI (m, N, rad, s, Pa).  In YAML a user may also write the
 edge units the project allows, named so: ``*_deg`` for an angle whose field is ``*_rad`` and
@@ -36,6 +37,11 @@ def _check_value(path, f, value):
     meta = f.metadata
     if isinstance(value, (list, tuple, dict)):
         return value
+    if isinstance(value, str) and not isinstance(f.default, str):
+        try:    # YAML 1.1 reads 2.1e11 (no dot) as a string; users write it anyway
+            value = float(value)
+        except ValueError:
+            pass
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         if isinstance(f.default, bool) and isinstance(value, bool):
             return value
@@ -61,7 +67,7 @@ def _check_value(path, f, value):
 
 
 def _nested_default(f):
-    """The default instance of a nested config dataclass field, else None."""
+    """Return the default instance of a nested config dataclass field, else None."""
     if f.default_factory is not dataclasses.MISSING:
         value = f.default_factory()
         return value if dataclasses.is_dataclass(value) else None
@@ -177,7 +183,7 @@ class LinearBearingConfig:
 
 
 def load_linear_bearing(path=None, overrides=None):
-    """LinearBearingConfig from YAML (key ``linear_bearing``) and/or a dict of overrides."""
+    """Load a LinearBearingConfig from YAML (key ``linear_bearing``) and/or overrides."""
     data = {}
     if path is not None:
         raw = load_yaml(path)

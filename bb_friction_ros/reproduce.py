@@ -1,4 +1,5 @@
-"""``bb-friction reproduce``: the paper's tables and figures, recomputed, with deviations.
+"""
+``bb-friction reproduce``: the paper's tables and figures, recomputed, with deviations.
 
 Writes ``report.md``, ``reproduction.json`` (one row per quantity: paper value, ours,
 deviation) and one PNG per reproduced figure.
@@ -12,7 +13,6 @@ import time
 
 import numpy as np
 
-from bb_friction_ros.linear_bearing import analytical as an
 from bb_friction_ros.linear_bearing.case_study import LinearPairCase
 from bb_friction_ros.linear_bearing.mitigation import two_ball_relative_motion
 

@@ -1,4 +1,5 @@
-"""Hertz contact of a ball on a grooved body: exact elliptic solution (Johnson, Contact Mechanics).
+"""
+Hertz contact of a ball on a grooved body: exact elliptic solution (Johnson, Contact Mechanics).
 
 All quantities SI: m, N, Pa.  The contact ellipse has semi-axis ``a`` along the direction of
 smaller relative curvature (across a conforming groove) and ``b`` along the other
@@ -19,7 +20,8 @@ def effective_modulus(youngs_modulus_pa, poisson_ratio):
 
 
 def ellipticity_from_curvatures(curv_a_per_m, curv_b_per_m):
-    """Return k = b/a of the Hertz ellipse for relative curvatures across (a) and along (b).
+    """
+    Return k = b/a of the Hertz ellipse for relative curvatures across (a) and along (b).
 
     Solves B/A = (E(e)/k^2 - K(e)) / (K(e) - E(e)) with e^2 = 1 - k^2 (Johnson Eq. 4.39),
     where A = curv_a/2 < B = curv_b/2.
@@ -41,7 +43,8 @@ def ellipticity_from_curvatures(curv_a_per_m, curv_b_per_m):
 
 @dataclass(frozen=True)
 class HertzContact:
-    """Load-independent coefficients of one Hertz contact; arrays of loads broadcast.
+    """
+    Load-independent coefficients of one Hertz contact; arrays of loads broadcast.
 
     a = coef_a_m_per_n13 * Q^(1/3), b = k * a, approach = coef_delta * Q^(2/3).
     """

@@ -1,4 +1,5 @@
-"""Analytical model of ball velocity and B2B contact, Eqs. (13)-(33); vectorised over arrays.
+"""
+Analytical model of ball velocity and B2B contact, Eqs. (13)-(33); vectorised over arrays.
 
 Every function broadcasts over numpy arrays (e.g. a theta x rho grid).  Angles in rad, forces
 in N, lengths in m.  Contact order BL, BR, TR, TL.
@@ -14,7 +15,8 @@ def spin_moment_factor(ellipticity):
 
 
 def velocity_centre_deviation(dbeta, loads_n, beta_rad, ball_radius_m, psi, ellipticity, k_f):
-    """Eqs. (16) + (19): angular deviations d_eta_i of the velocity centres  [rad].
+    """
+    Eqs. (16) + (19): angular deviations d_eta_i of the velocity centres  [rad].
 
     ``dbeta``, ``loads_n``, ``beta_rad``: arrays (..., 4).  Eq. (16) is linear in d_eta once
     the moments take their pure-spin value (Eq. 11); Eq. (19) closes the 4x4 system.
@@ -62,7 +64,7 @@ def velocity_deviation_eq22(dbeta, f_u_n, f_d_n, beta0_rad):
 
 
 def velocity_deviation_eq33(theta_rad, rho):
-    """Eq. (33): (eps_1, eps_2) of the Sec. 2.4.1 case (beta_0 = 45 deg), ball 1 at N_x = rho N_y."""
+    """Eq. (33): (eps_1, eps_2) of the Sec. 2.4.1 case (beta_0 = 45 deg), N_x1 = rho N_y."""
     theta, rho = np.asarray(theta_rad, dtype=float), np.asarray(rho, dtype=float)
     r = ((1.0 + rho) / (1.0 - rho)) ** (2.0 / 3.0)
     eps1 = (1.0 - r) / (1.0 + r) * theta / 2.0
@@ -71,7 +73,8 @@ def velocity_deviation_eq33(theta_rad, rho):
 
 def b2b_force_eq30(eps1, eps2, loads1_ud_n, loads2_ud_n, ball_radius_m, psi, beta0_rad, mu,
                    k_f):
-    """Eq. (30): B2B contact force, analytical; zero where ball 1 is not faster  [N].
+    """
+    Eq. (30): B2B contact force, analytical; zero where ball 1 is not faster  [N].
 
     ``loads*_ud_n`` = (F_U, F_D) of each ball, arrays (..., 2).  The gap condition is the
     caller's (two balls assumed touching).
@@ -98,7 +101,8 @@ def b2b_loss_eq32(b2b_force_n, groove_velocity_m_s, beta0_rad, mu):
 
 def groove_loss_pure_spin(loads_n, semi_major_m, ellipticity, groove_velocity_m_s,
                           beta0_rad, ball_radius_m, mu):
-    """Ball-groove loss of one ball at the analytical model's pure-spin limit (Eq. 11)  [W].
+    """
+    Ball-groove loss of one ball at the analytical model's pure-spin limit (Eq. 11)  [W].
 
     With c_i ~ 0 (Sec. 2.3.1) each contact only spins: P_i = |w_i| M_i,O with
     M_i,O = 3/8 mu F_i a_i Ellip and |w_i| = w_x sin beta_0, w_x = v / (2 R_B cos beta_0).

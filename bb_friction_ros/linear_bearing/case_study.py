@@ -1,4 +1,5 @@
-"""The two-ball case of Sec. 2.4 (Fig. 7), numerical and analytical, and its theta x rho maps.
+"""
+The two-ball case of Sec. 2.4 (Fig. 7), numerical and analytical, and its theta x rho maps.
 
 Setup: the bottom groove deviates by theta (dbeta_BL = -theta, dbeta_BR = +theta); the top
 groove by (dbeta_TR, dbeta_TL).  Ball 1 is behind and carries N_x = +rho N_y, ball 2 in
@@ -34,7 +35,8 @@ class PairResult:
     model: str
 
     def as_json(self):
-        """The CLI's ``--json`` object: contract keys first, then extras.
+        """
+        Return the CLI's ``--json`` object: contract keys first, then extras.
 
         An unconverged solve's last iterate is no result: its numbers are null.
         """
@@ -59,7 +61,7 @@ class LinearPairCase:
 
     @property
     def model(self):
-        """The numerical LinearBearingModel (friction map built lazily)."""
+        """Return the numerical LinearBearingModel (friction map built lazily)."""
         if self._model is None:
             self._model = LinearBearingModel(self.cfg)
         return self._model

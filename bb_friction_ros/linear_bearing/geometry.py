@@ -1,4 +1,5 @@
-"""Cross-section geometry and rigid statics of a ball between bottom rail and top carriage.
+"""
+Cross-section geometry and rigid statics of a ball between bottom rail and top carriage.
 
 Contact order everywhere: BL, BR, TR, TL (bottom/top, left/right; paper Fig. 2).  Angles
 beta_i are measured from the -y axis (bottom) or +y axis (top) to the contact normal.
@@ -17,7 +18,7 @@ def deviated_contact_angles(beta0_rad, dbeta_bl, dbeta_br, dbeta_tr, dbeta_tl):
 
 
 def outward_normals(beta_rad):
-    """Unit vectors from the ball centre to the four contact points, shape (4, 2) (x, y)."""
+    """Return unit vectors from the ball centre to the four contact points, shape (4, 2) (x, y)."""
     b = np.asarray(beta_rad, dtype=float)
     sx = np.array([-1.0, 1.0, 1.0, -1.0])
     sy = np.array([-1.0, -1.0, 1.0, 1.0])
@@ -25,7 +26,8 @@ def outward_normals(beta_rad):
 
 
 def contact_forces_rigid(beta_rad, side_force_n, vertical_load_n):
-    """Normal contact loads from rigid statics of the top groove and of the ball  [N].
+    """
+    Solve the normal contact loads from rigid statics of the top groove and of the ball  [N].
 
     The external load (N_x, -N_y) acts on the top groove, which rests on the ball at TR, TL;
     the ball rests on the bottom rail at BL, BR.  Two 2x2 systems, exact for any deviation.

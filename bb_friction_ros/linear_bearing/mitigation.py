@@ -10,7 +10,8 @@ def matched_top_deviations(dbeta_bl_rad, dbeta_br_rad):
 
 def two_ball_relative_motion(eps1, eps2, groove_velocity_m_s, initial_gap_m, t_s,
                              eps_contact=None):
-    """Fig. 10: displacements of balls 1 (rear) and 2 from nominal motion v/2 t, and their gap.
+    """
+    Fig. 10: displacements of balls 1 (rear) and 2 from nominal motion v/2 t, and their gap.
 
     Each ball moves at (1 + eps_j) v/2 until the gap closes; from then on both move at
     (1 + eps_contact) v/2 (by default the mean, which Eq. 30 gives for the paper's

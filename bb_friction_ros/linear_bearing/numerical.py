@@ -1,4 +1,5 @@
-"""Low-order numerical model, Eqs. (1)-(10): single balls and B2B contact groups in a row.
+"""
+Low-order numerical model, Eqs. (1)-(10): single balls and B2B contact groups in a row.
 
 Each ball has the unknowns v_B, w_x, w_y (w_z = 0, Sec. 2.1); a group of g touching balls
 shares v_B and adds g - 1 B2B forces (Eq. 9): 3g equations in 3g unknowns.  The kinematics
@@ -74,7 +75,7 @@ class LinearBearingModel:
         self.fmap = FrictionMapLine(self.hertz.ellipticity, n_nodes=cfg.map_nodes)
 
     def ball(self, beta_rad, load_n):
-        """A Ball from contact angles and normal loads (loads below the threshold unload)."""
+        """Make a Ball from contact angles and normal loads (loads below the threshold unload)."""
         load = np.where(np.asarray(load_n, float) > self.cfg.min_contact_load_n,
                         np.asarray(load_n, float), 0.0)
         a, _ = self.hertz.semi_axes(load)
@@ -86,7 +87,8 @@ class LinearBearingModel:
             return self._residual_impl(balls, z, v, jacobian)
 
     def _residual_impl(self, balls, z, v, jacobian):
-        """Scaled equilibrium residuals (3 per ball) and their Jacobian for a group.
+        """
+        Scaled equilibrium residuals (3 per ball) and their Jacobian for a group.
 
         z = [v_B/v, (w_x R/v, w_y R/v) per ball, F_B2B/(mu Q_ref) per contact].
         Residuals: z-force, x-moment/R, y-moment/R of each ball, divided by mu Q_ref.
@@ -244,7 +246,8 @@ class LinearBearingModel:
 
     # --- many balls in a row: complementarity by active set ------------------------------
     def solve_row(self, balls, gaps_m, max_sweeps=None):
-        """Eqs. (9)-(10) for balls ordered rear (index 0) to front along +z.
+        """
+        Eqs. (9)-(10) for balls ordered rear (index 0) to front along +z.
 
         A pair (j, j+1) is in contact iff its gap is closed and, with the contact, the B2B
         force is >= 0; without it, ball j must not be faster than ball j+1.  Solved exactly
@@ -304,7 +307,7 @@ class RowSolution:
 
     @property
     def converged(self):
-        """True if the active set settled and every group's Newton converged."""
+        """Return True if the active set settled and every group's Newton converged."""
         return self.complementarity_ok and all(s.converged for s in self.solutions)
 
 

@@ -88,7 +88,7 @@ def test_analytical_grid_is_vectorised(case):
 
 
 def test_fig10_gap_closes_then_stays(case):
-    """Fig. 10: initial gap 0.1 R_B closes at t = gap/((eps1-eps2) v/2) in case (a), never in (b)."""
+    """Fig. 10: the 0.1 R_B gap closes at gap/((eps1-eps2) v/2) in case (a), never in (b)."""
     cfg = case.cfg
     gap0 = 0.1 * cfg.ball_radius_m
     res_a = case.analytical(THETA, -0.6)

@@ -10,7 +10,7 @@ from bb_friction_ros.linear_bearing.case_study import LinearPairCase
 
 
 def test_fig9_max_friction_increase():
-    """Fig. 9(c): max (P_f + P_fB2B)/P_f = 185.2 % (+-2 pt) at the corners theta = -+3 deg, rho = +-0.6."""
+    """Fig. 9(c): max (P_f + P_fB2B)/P_f = 185.2 % (+-2 pt), at theta = -+3 deg, rho = +-0.6."""
     case = LinearPairCase(load_linear_bearing())
     th = np.radians(np.linspace(-3, 3, 7))
     rho = np.linspace(-0.6, 0.6, 7)
