@@ -82,27 +82,34 @@ class LinearBearingModel:
         return Ball(np.asarray(beta_rad, float), load, a)
 
     # --- kinematics and equilibrium of a group -------------------------------------------
-    def _residual(self, balls, z, v, jacobian=True):
-        with np.errstate(over="ignore", invalid="ignore"):
-            return self._residual_impl(balls, z, v, jacobian)
+    def _prepare(self, balls):
+        """Stack the group's load-dependent arrays once per solve (they are fixed in it)."""
+        q = np.array([b.load_n for b in balls])
+        loaded = q > 0.0
+        a = np.array([b.semi_major_m for b in balls])
+        return {"nx": np.array([b.normals[:, 0] for b in balls]),     # (g, 4)
+                "ny": np.array([b.normals[:, 1] for b in balls]),
+                "q": q, "a": a, "loaded": loaded, "a_safe": np.where(loaded, a, 1.0),
+                "q_ref": self._q_ref(balls), "g": len(balls)}
 
-    def _residual_impl(self, balls, z, v, jacobian):
+    def _residual(self, balls, z, v, jacobian=True, prep=None):
+        """Scaled residuals and Jacobian of a group (see ``_residual_impl``)."""
+        with np.errstate(over="ignore", invalid="ignore"):
+            return self._residual_impl(prep or self._prepare(balls), z, v, jacobian)
+
+    def _residual_impl(self, prep, z, v, jacobian):
         """
         Scaled equilibrium residuals (3 per ball) and their Jacobian for a group.
 
         z = [v_B/v, (w_x R/v, w_y R/v) per ball, F_B2B/(mu Q_ref) per contact].
         Residuals: z-force, x-moment/R, y-moment/R of each ball, divided by mu Q_ref.
         """
-        g = len(balls)
+        g = prep["g"]
         cfg = self.cfg
         r_b, mu = cfg.ball_radius_m, cfg.friction_coefficient
-        q_ref = self._q_ref(balls)
-        nx = np.array([b.normals[:, 0] for b in balls])          # (g, 4)
-        ny = np.array([b.normals[:, 1] for b in balls])
-        q = np.array([b.load_n for b in balls])
-        a = np.array([b.semi_major_m for b in balls])
-        loaded = q > 0.0
-        a_safe = np.where(loaded, a, 1.0)
+        q_ref = prep["q_ref"]
+        nx, ny, q, a = prep["nx"], prep["ny"], prep["q"], prep["a"]
+        loaded, a_safe = prep["loaded"], prep["a_safe"]
         wx = z[1:1 + 2 * g:2][:, None] * (v / r_b)
         wy = z[2:2 + 2 * g:2][:, None] * (v / r_b)
         vg = np.where(TOP, v, 0.0)[None, :]
@@ -144,15 +151,15 @@ class LinearBearingModel:
         dslip = [np.full_like(nx, v), v * ny, -v * nx]           # d slip / d(z0, zx, zy)
         dspin = [np.zeros_like(nx), (v / r_b) * nx, (v / r_b) * ny]
         jac = np.zeros((3 * g, 3 * g))
+        rows_idx = np.arange(3 * g)
         for col in range(3):
             du = du_dslip * dslip[col] + du_dspin * dspin[col]
             dfz = np.where(loaded, mu * q * der[0] * du, 0.0) / (mu * q_ref)
             dmom = np.where(loaded, mu * q * a * der[1] * du, 0.0) / (mu * q_ref * r_b)
             rows = np.stack([dfz.sum(axis=1), (ny * dfz + nx * dmom).sum(axis=1),
-                             (-nx * dfz + ny * dmom).sum(axis=1)], axis=1)   # (g, 3)
-            for j in range(g):
-                c = 0 if col == 0 else 1 + 2 * j + (col - 1)
-                jac[3 * j:3 * j + 3, c] += rows[j]
+                             (-nx * dfz + ny * dmom).sum(axis=1)], axis=1).ravel()
+            cols = 0 if col == 0 else 1 + 2 * (rows_idx // 3) + (col - 1)
+            jac[rows_idx, cols] += rows
         for j in range(g - 1):
             cf = 1 + 2 * g + j
             jac[3 * j, cf] -= 1.0
@@ -190,7 +197,8 @@ class LinearBearingModel:
         v = self.cfg.groove_velocity_m_s
         z = self.initial_guess(balls) if z0 is None else np.array(z0, dtype=float)
         tol = self.cfg.solver_tolerance
-        res, jac = self._residual(balls, z, v)
+        prep = self._prepare(balls)
+        res, jac = self._residual(balls, z, v, prep=prep)
         norm = np.max(np.abs(res))
         it = 0
         while norm > tol and it < max_iter:
@@ -202,14 +210,12 @@ class LinearBearingModel:
             lam = 1.0
             while True:       # backtracking keeps Newton honest far from the solution
                 z_new = z + lam * step
-                res_new, _ = self._residual(balls, z_new, v, jacobian=False)
+                res_new, jac_new = self._residual(balls, z_new, v, prep=prep)
                 norm_new = np.max(np.abs(res_new))
                 if norm_new < (1.0 - 1e-4 * lam) * norm or lam < 1e-4:
                     break
                 lam *= 0.5
-            z = z_new
-            res, jac = self._residual(balls, z, v)
-            norm = np.max(np.abs(res))
+            z, res, jac, norm = z_new, res_new, jac_new, norm_new
         return self._unpack(balls, z, v, converged=bool(norm <= tol), residual=float(norm),
                             iterations=it)
 
