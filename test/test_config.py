@@ -42,3 +42,9 @@ def test_bad_config_names_key_and_reason(tmp_path, text, needle):
 def test_missing_file_is_a_config_error(tmp_path):
     with pytest.raises(ConfigError, match="cannot read"):
         load_linear_bearing(tmp_path / "nope.yaml")
+
+
+def test_bundled_config_is_table1(repo_root):
+    """config/linear_bearing.yaml loads (YAML 1.1 '2.1e11' included) and equals the defaults."""
+    assert load_linear_bearing(repo_root / "config" / "linear_bearing.yaml") == \
+        load_linear_bearing()
