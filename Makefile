@@ -11,6 +11,8 @@ unexport _ROS_WHEELS_BOOTSTRAP_COMPLETE
 .PHONY: setup test demo clean distclean
 
 setup:
+	@command -v $(PYTHON) >/dev/null || { echo "make: $(PYTHON) not found: install" \
+	  "CPython 3.11, or run make PYTHON=/path/to/python3.11 ..." >&2; exit 1; }
 	@$(PYTHON) tools/setup_venv.py
 
 test: setup

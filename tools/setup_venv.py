@@ -10,6 +10,7 @@ inputs of each stage is recorded in .venv/.setup-stamp, so a second run is a fas
    container. Redone from scratch (the venv is deleted) when the pins change.
 2. msgs: configure, build and install msg_defs/bb_friction_msgs with cmake into the venv prefix.
 3. package: ``pip install --no-deps -e .`` (editable: edits under bb_friction_ros/ are live).
+   Redone when setup.py or setup.cfg change.
 
 Usage: python3.11 tools/setup_venv.py [--force] [--lock]
 """
@@ -25,6 +26,9 @@ import subprocess
 import sys
 import time
 
+# Bump when a change to this script changes what a stage produces: every stage is then redone
+# (from a new venv). Edits that do not change the result need no bump.
+SETUP_VERSION = 1
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 VENV = os.path.join(ROOT, '.venv')
 VENV_PY = os.path.join(VENV, 'bin', 'python')
@@ -32,6 +36,7 @@ STAMP = os.path.join(VENV, '.setup-stamp')
 BUILD = os.path.join(ROOT, 'build')
 MSGS_SRC = os.path.join(ROOT, 'msg_defs', 'bb_friction_msgs')
 MSGS_BUILD = os.path.join(BUILD, 'bb_friction_msgs')
+MSGS_MANIFEST = os.path.join(VENV, '.bb_friction_msgs-install-manifest.txt')
 REQUIREMENTS = os.path.join(ROOT, 'requirements.txt')
 CONSTRAINTS = os.path.join(ROOT, 'constraints.txt')
 PIP = [VENV_PY, '-m', 'pip', '--disable-pip-version-check', '--no-input']
@@ -104,15 +109,13 @@ def tree_files(top):
 
 def stage_keys():
     """Hash of the inputs of each stage; a stage's key includes the keys of the stages before."""
-    here = os.path.abspath(__file__)
-    venv = hash_files([REQUIREMENTS, CONSTRAINTS, here],
-                      extra=f'{sys.version}\0{sys.executable}\0{VENV}')
+    venv = hash_files([REQUIREMENTS, CONSTRAINTS],
+                      extra=f'{SETUP_VERSION}\0{sys.version}\0{sys.executable}\0{VENV}')
     msgs = hash_files(tree_files(MSGS_SRC), extra=venv)
-    package = hash_files(
-        [os.path.join(ROOT, p) for p in ('setup.py', 'setup.cfg', 'package.xml',
-                                         'resource/bb_friction_ros')]
-        + glob.glob(os.path.join(ROOT, 'config', '*.yaml')),
-        extra=msgs)
+    # An editable install does not copy data_files (package.xml, config/): only what setup.py
+    # and setup.cfg say about packages and entry points matters.
+    package = hash_files([os.path.join(ROOT, 'setup.py'), os.path.join(ROOT, 'setup.cfg')],
+                         extra=msgs)
     return {'venv': venv, 'msgs': msgs, 'package': package}
 
 
@@ -183,7 +186,7 @@ def fix_baked_include_paths():
 
 def uninstall_previous_msgs():
     """Remove files a previous cmake --install put into the venv (messages may have gone)."""
-    manifest = os.path.join(MSGS_BUILD, 'install_manifest.txt')
+    manifest = MSGS_MANIFEST
     if not os.path.isfile(manifest):
         return
     with open(manifest) as f:
@@ -211,6 +214,8 @@ def build_msgs():
         capture=True)
     run(['cmake', '--install', MSGS_BUILD, '--prefix', VENV],
         'cmake install of bb_friction_msgs', capture=True)
+    # Kept in the venv, which outlives build/ (make clean).
+    shutil.copyfile(os.path.join(MSGS_BUILD, 'install_manifest.txt'), MSGS_MANIFEST)
     log('bb_friction_msgs installed into the venv')
 
 
