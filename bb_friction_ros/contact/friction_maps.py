@@ -248,44 +248,55 @@ class FrictionMapSphere:
         arrays = _cached("sphere", (round(self.ellipticity, 12), self.n_polar, self.n_azimuth),
                          build)
         self._v, self._dt, self._dh, self._dth = (arrays[k] for k in ("values", "dt", "dh", "dth"))
+        self._coef = self._cell_coefficients()
+
+    def _cell_coefficients(self):
+        """Power-basis coefficients of the bicubic Hermite patch of every cell.
+
+        Shape (n_polar * n_azimuth, 4, 16): per cell, power j of s_h, then output o and
+        power i of s_t at index 4 o + i (contiguous slices for the Horner steps).  Built from the node tables once per map so an
+        evaluation is a single gather and a polynomial (no Python loop over corners).
+        """
+        n_t, n_h = self.n_polar, self.n_azimuth
+        i0 = np.arange(n_t)[:, None]
+        i1 = i0 + 1
+        j0 = np.arange(n_h)[None, :]
+        j1 = (j0 + 1) % n_h
+        v, ft = self._v, self._dt * self.dt
+        fh, fth = self._dh * self.dh, self._dth * (self.dt * self.dh)
+        # G[o, cell, a, b]: a = (value at i0, at i1, t-slope at i0, at i1), b likewise in h.
+        g = np.stack([
+            np.stack([v[:, i0, j0], v[:, i0, j1], fh[:, i0, j0], fh[:, i0, j1]], axis=-1),
+            np.stack([v[:, i1, j0], v[:, i1, j1], fh[:, i1, j0], fh[:, i1, j1]], axis=-1),
+            np.stack([ft[:, i0, j0], ft[:, i0, j1], fth[:, i0, j0], fth[:, i0, j1]], axis=-1),
+            np.stack([ft[:, i1, j0], ft[:, i1, j1], fth[:, i1, j0], fth[:, i1, j1]], axis=-1),
+        ], axis=-2)
+        hermite = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0],
+                            [-3.0, 3.0, -2.0, -1.0], [2.0, -2.0, 1.0, 1.0]])
+        c = np.einsum("ia,ocdab,jb->cdjoi", hermite, g, hermite)
+        return np.ascontiguousarray(c.reshape(n_t * n_h, 4, 16))
 
     def evaluate_angles(self, t, h):
         """Normalised (f_X, f_Y, m, p) and their t- and h-derivatives at angles (t, h)."""
         t = np.clip(np.asarray(t, dtype=float), 0.0, math.pi)
         h = np.asarray(h, dtype=float)
-        x = t / self.dt
-        i0 = np.minimum(np.floor(x).astype(np.int64), self.n_polar - 1)
+        shape = t.shape
+        x = t.ravel() / self.dt
+        i0 = np.minimum(x.astype(np.int64), self.n_polar - 1)
         sx = x - i0
-        y = np.mod(h, _TWO_PI) / self.dh
-        j0f = np.floor(y)
-        sy = y - j0f
-        j0 = j0f.astype(np.int64) % self.n_azimuth
-        j1 = (j0 + 1) % self.n_azimuth
-        i1 = i0 + 1
-
-        def basis(s):
-            s2, s3 = s * s, s * s * s
-            return ((2 * s3 - 3 * s2 + 1, s3 - 2 * s2 + s, -2 * s3 + 3 * s2, s3 - s2),
-                    (6 * s2 - 6 * s, 3 * s2 - 4 * s + 1, -6 * s2 + 6 * s, 3 * s2 - 2 * s))
-
-        (bx, dbx), (by, dby) = basis(sx), basis(sy)
-        val = np.zeros((4,) + t.shape)
-        d_t = np.zeros_like(val)
-        d_h = np.zeros_like(val)
-        for a_i, ii in ((0, i0), (1, i1)):
-            for b_j, jj in ((0, j0), (1, j1)):
-                f = self._v[:, ii, jj]
-                ft = self._dt[:, ii, jj] * self.dt
-                fh = self._dh[:, ii, jj] * self.dh
-                fth = self._dth[:, ii, jj] * self.dt * self.dh
-                hx, hxd = bx[2 * a_i], bx[2 * a_i + 1]
-                hy, hyd = by[2 * b_j], by[2 * b_j + 1]
-                dhx, dhxd = dbx[2 * a_i], dbx[2 * a_i + 1]
-                dhy, dhyd = dby[2 * b_j], dby[2 * b_j + 1]
-                val += f * hx * hy + ft * hxd * hy + fh * hx * hyd + fth * hxd * hyd
-                d_t += f * dhx * hy + ft * dhxd * hy + fh * dhx * hyd + fth * dhxd * hyd
-                d_h += f * hx * dhy + ft * hxd * dhy + fh * hx * dhyd + fth * hxd * dhyd
-        return val, d_t / self.dt, d_h / self.dh
+        y = np.mod(h.ravel(), _TWO_PI) / self.dh
+        j0 = np.minimum(y.astype(np.int64), self.n_azimuth - 1)
+        sy = y - j0
+        c = self._coef[i0 * self.n_azimuth + j0]                # (cell, j, 4 o + i)
+        sy = sy[:, None]
+        qv = (((c[:, 3] * sy + c[:, 2]) * sy + c[:, 1]) * sy + c[:, 0]).reshape(-1, 4, 4)
+        qd = ((3.0 * c[:, 3] * sy + 2.0 * c[:, 2]) * sy + c[:, 1]).reshape(-1, 4, 4)
+        qv, qd = qv.transpose(2, 1, 0), qd.transpose(2, 1, 0)   # (i, o, cell)
+        val = ((qv[3] * sx + qv[2]) * sx + qv[1]) * sx + qv[0]
+        d_t = ((3.0 * qv[3] * sx + 2.0 * qv[2]) * sx + qv[1]) / self.dt
+        d_h = (((qd[3] * sx + qd[2]) * sx + qd[1]) * sx + qd[0]) / self.dh
+        out = (4,) + shape
+        return val.reshape(out), d_t.reshape(out), d_h.reshape(out)
 
     def exact(self, t, h):
         """Direct (untabulated) evaluation, for checks."""

@@ -1,0 +1,63 @@
+"""
+Ball-to-ball (B2B) contact along the helix (Eqs. 56-61).
+
+Two touching balls sit on the exact helix at the azimuth separation for which their chord is
+2 R_B (``geometry.b2b_contact_separation``).  The contact normal is that chord; the contact
+is a Coulomb point contact (the B2B contact ellipse is tiny and its spin moment is
+neglected, as Eq. 57 does).  The slip of the rear ball relative to the front one at the
+contact point is computed with exact 3-D vectors (Eq. 57 is its component form), projected
+into the contact plane; the friction force is -mu F slip/|slip| on the rear ball (Eq. 58) and
+the loss mu F |slip| (the analogue of Eq. 7).  With equal orbit rates the two balls move by
+the same screw motion, an isometry, so the normal relative velocity is exactly zero.
+"""
+
+import numpy as np
+
+from bb_friction_ros.ball_screw import geometry as geo
+
+_TINY = 1e-300
+
+
+class B2BContactModel:
+    """B2B contact constants for both directions of motion."""
+
+    def __init__(self, config, ball_model):
+        """Chord frames for a front ball ahead in +phi (sign +1) and in -phi (sign -1)."""
+        g = config.geometry
+        self.ball = ball_model
+        self.mu = config.material.friction_coefficient
+        self.separation = geo.b2b_contact_separation(g.ball_radius_m, g.lead_m,
+                                                     g.pitch_radius_m)
+        self.paper_separation = 2.0 * geo.b2b_contact_angle(g.ball_radius_m, g.lead_m,
+                                                            g.pitch_radius_m)
+        self.frames = {s: geo.b2b_chord_frames(s * self.separation, g.pitch_radius_m,
+                                               g.lead_m) for s in (1.0, -1.0)}
+
+    def slip(self, x_rear, x_front, sign):
+        """Eq. (57): slip (K, 3) of the rear ball on the front one, in the rear's CS_3."""
+        m_r, m_f, rot = self.frames[sign]
+        r_b, ell = self.ball.r_b, self.ball.ell
+        v_r = np.zeros((x_rear.shape[0], 3))
+        v_r[:, 1] = x_rear[:, 2] * ell
+        v_f = np.zeros_like(v_r)
+        v_f[:, 1] = x_front[:, 2] * ell
+        s_rear = v_r + r_b * np.cross(x_rear[:, 3:6], m_r)
+        s_front = v_f - r_b * np.cross(x_front[:, 3:6], m_f)
+        s = s_rear - s_front @ rot.T
+        return s - np.outer(s @ m_r, m_r)
+
+    def unit_terms(self, x_rear, x_front, sign):
+        """Eqs. (58)-(59) per unit B2B force: (K, 6) force and moment/R_B on rear and front.
+
+        Also returns the slip speed |slip| (K,) per |omega_N|, so that the loss is
+        mu F |slip| |omega_N|.
+        """
+        m_r, m_f, rot = self.frames[sign]
+        st = self.slip(x_rear, x_front, sign)
+        speed = np.linalg.norm(st, axis=1)
+        unit = st / np.maximum(speed, _TINY)[:, None]
+        fr_r = -self.mu * unit
+        g_rear = np.concatenate([-m_r + fr_r, np.cross(m_r, fr_r)], axis=1)
+        fr_f = -fr_r @ rot          # rear-frame vector -> front-frame components
+        g_front = np.concatenate([m_f + fr_f, -np.cross(m_f, fr_f)], axis=1)
+        return g_rear, g_front, speed

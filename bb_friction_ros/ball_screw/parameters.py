@@ -1,0 +1,167 @@
+"""
+Validated configuration of the ball screw model (paper Sec. 3, Table 4; issue #4).
+
+Every physical value is a named field with its unit and admissible range.  SI inside; the YAML
+file may use the edge units ``*_deg``, ``*_mm``, ``*_um`` (converted by ``from_mapping``).
+"""
+
+import dataclasses
+import math
+
+from bb_friction_ros.config import ConfigError, field, from_mapping, load_yaml
+
+_DEG = math.pi / 180.0
+
+
+@dataclasses.dataclass(frozen=True)
+class ScrewGeometry:
+    """Nominal geometry of a single-start, right-handed, Gothic-arch ball screw (Table 4)."""
+
+    ball_radius_m: float = field(2.778e-3, "m", "ball radius R_B", lo=0.0, lo_open=True)
+    conformity: float = field(0.56, "1", "groove arc radius / ball diameter", lo=0.5, hi=1.0,
+                              lo_open=True)
+    pitch_radius_m: float = field(16.5e-3, "m", "pitch circle radius R_P", lo=0.0,
+                                  lo_open=True)
+    lead_m: float = field(20e-3, "m", "lead p of the single-start screw", lo=0.0,
+                          lo_open=True)
+    nominal_contact_angle_rad: float = field(45.0 * _DEG, "rad", "nominal contact angle "
+                                             "beta_0", lo=0.0, hi=math.pi / 2, lo_open=True,
+                                             hi_open=True)
+    ball_oversize_m: float = field(0.0, "m", "preload: ball diameter minus the diameter that "
+                                   "just touches all four arcs", lo=-1e-5, hi=1e-4)
+
+    def check(self, path):
+        """Cross-field checks: the ball must fit the pitch circle."""
+        if self.ball_radius_m >= self.pitch_radius_m:
+            raise ConfigError(f"{path}.ball_radius_m: must be < pitch_radius_m")
+
+
+@dataclasses.dataclass(frozen=True)
+class Material:
+    """Elastic and friction properties (balls, screw and nut of the same steel)."""
+
+    youngs_modulus_pa: float = field(210e9, "Pa", "Young's modulus E (Table 4's '210 N/mm^2' "
+                                     "is a typo for 210 GPa)", lo=1e9, hi=1e13)
+    poisson_ratio: float = field(0.28, "1", "Poisson's ratio", lo=0.0, hi=0.5, hi_open=True)
+    friction_coefficient: float = field(0.1, "1", "Coulomb coefficient mu (groove and B2B)",
+                                        lo=0.0, hi=1.0, lo_open=True)
+
+
+@dataclasses.dataclass(frozen=True)
+class GeometricErrors:
+    """
+    Geometric errors of the grooves (paper Figs. 15, 17, 19).
+
+    theta(phi) = offset + amplitude sin(cycles_per_rev phi + phase) is the screw-side
+    contact-angle deviation: a rigid rotation of the screw groove profile about the nominal
+    ball centre, beta_SL = beta_0 - theta, beta_SR = beta_0 + theta.
+    """
+
+    theta_amplitude_rad: float = field(2.0 * _DEG, "rad", "amplitude of the sinusoidal "
+                                       "screw contact-angle deviation theta(phi) (Fig. 19; "
+                                       "not given in the paper, see docs)", lo=0.0,
+                                       hi=10.0 * _DEG)
+    theta_cycles_per_rev: float = field(2.0, "1", "cycles of theta per screw revolution "
+                                        "(four cycles over the two loaded turns)", lo=0.0,
+                                        hi=100.0)
+    theta_phase_rad: float = field(0.0, "rad", "phase of theta(phi) at phi = 0",
+                                   lo=-2 * math.pi, hi=2 * math.pi)
+    theta_offset_rad: float = field(0.0, "rad", "constant part of theta", lo=-10.0 * _DEG,
+                                    hi=10.0 * _DEG)
+    nut_lead_error_m: float = field(0.0, "m", "nut lead minus screw lead, per revolution "
+                                    "(shifts the nut groove along the loaded track)",
+                                    lo=-1e-4, hi=1e-4)
+    screw_lead_error_amplitude_m: float = field(0.0, "m", "amplitude of a periodic screw "
+                                                "lead error (axial groove shift)", lo=0.0,
+                                                hi=1e-4)
+    screw_lead_error_cycles_per_rev: float = field(1.0, "1", "cycles of the periodic screw "
+                                                   "lead error per revolution", lo=0.0,
+                                                   hi=100.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class NutTrack:
+    """Balls in the nut's loaded track and its recirculation (Sec. 3.4)."""
+
+    n_balls: int = field(37, "1", "balls in the closed recirculation loop", lo=2, hi=100000)
+    loaded_turns: float = field(2.0, "1", "turns of the loaded track (loop length, the "
+                                "return tube is taken as zero length)", lo=0.1, hi=1000.0)
+    track_start_rad: float = field(0.0, "rad", "nut-frame azimuth where the loaded track "
+                                   "starts", lo=-2 * math.pi, hi=2 * math.pi)
+
+
+@dataclasses.dataclass(frozen=True)
+class Operation:
+    """Operating point of the whole-screw simulation (Sec. 3.4) and of the module (Table 5)."""
+
+    nut_speed_rad_s: float = field(2.0 * math.pi, "rad/s", "nut angular velocity omega_N",
+                                   lo=-1e4, hi=1e4)
+    axial_load_n: float = field(1500.0, "N", "axial load W: force of the balls on the nut "
+                                "along +z; W > 0 opposes omega_N > 0", lo=-1e6, hi=1e6)
+    duration_s: float = field(2.0, "s", "simulated time", lo=0.0, lo_open=True)
+    n_steps: int = field(200, "1", "time steps", lo=1, hi=10 ** 7)
+    module_axial_load_n: float = field(50.0, "N", "axial load on the two-ball module of "
+                                       "Table 5, shared by both balls", lo=-1e6, hi=1e6)
+    module_theta1_rad: float = field(0.0, "rad", "theta of ball 1 in the two-ball module",
+                                     lo=-10.0 * _DEG, hi=10.0 * _DEG)
+    module_theta2_rad: float = field(2.0 * _DEG, "rad", "theta of ball 2 in the two-ball "
+                                     "module", lo=-10.0 * _DEG, hi=10.0 * _DEG)
+
+
+@dataclasses.dataclass(frozen=True)
+class SolverSettings:
+    """Newton / active-set settings; they set accuracy, never the physics."""
+
+    tolerance: float = field(1e-10, "1", "residual tolerance relative to the force scale",
+                             lo=1e-15, hi=1e-3)
+    max_iterations: int = field(40, "1", "Newton iterations per active set", lo=1, hi=1000)
+    max_active_set_changes: int = field(50, "1", "active-set updates per solve", lo=1,
+                                        hi=10000)
+    gap_tolerance_rad: float = field(1e-9, "rad", "azimuth gap below which two balls touch",
+                                     lo=0.0, hi=1e-3)
+    max_step_rate: float = field(1.0, "1", "largest Newton change of an angular rate, in "
+                                 "units of |omega_N| (trust region)", lo=0.0, lo_open=True)
+    max_step_displacement_m: float = field(1e-6, "m", "largest Newton change of a ball or "
+                                           "nut displacement (trust region)", lo=0.0,
+                                           lo_open=True)
+    min_axial_load_n: float = field(1e-6, "N", "with zero preload, below this |W| no ball is "
+                                    "loaded: zero friction is returned", lo=0.0)
+    map_polar_nodes: int = field(160, "1", "polar nodes of the friction map", lo=16,
+                                 hi=4096)
+    map_azimuth_nodes: int = field(256, "1", "azimuth nodes of the friction map", lo=16,
+                                   hi=8192)
+
+
+@dataclasses.dataclass(frozen=True)
+class BallScrewConfig:
+    """Complete ball screw configuration (key ``ball_screw`` of config/ball_screw.yaml)."""
+
+    geometry: ScrewGeometry = dataclasses.field(default_factory=ScrewGeometry)
+    material: Material = dataclasses.field(default_factory=Material)
+    errors: GeometricErrors = dataclasses.field(default_factory=GeometricErrors)
+    track: NutTrack = dataclasses.field(default_factory=NutTrack)
+    operation: Operation = dataclasses.field(default_factory=Operation)
+    solver: SolverSettings = dataclasses.field(default_factory=SolverSettings)
+
+
+def _merge(base, extra):
+    """Recursively merge mapping ``extra`` into a copy of ``base``."""
+    out = dict(base)
+    for key, value in (extra or {}).items():
+        if isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = _merge(out[key], value)
+        else:
+            out[key] = value
+    return out
+
+
+def load_ball_screw(path=None, overrides=None):
+    """BallScrewConfig from YAML (key ``ball_screw``) and/or nested dict overrides."""
+    data = {}
+    if path is not None:
+        raw = load_yaml(path)
+        if not isinstance(raw, dict):
+            raise ConfigError(f"{path}: expected a mapping at top level")
+        data = raw.get("ball_screw", raw)
+    data = _merge(data if isinstance(data, dict) else {}, overrides)
+    return from_mapping(BallScrewConfig, data, "ball_screw")

@@ -1,0 +1,189 @@
+"""
+Quasi-static equilibrium of a set of balls with B2B contact: Newton + active set (Eqs. 54-61).
+
+Unknowns: the six states of every ball, the nut axial displacement u (shared: the axial load
+is carried by all balls) and the normal force of every active B2B contact.  Equations: six
+equilibrium equations per ball (Eq. 54 plus the B2B terms of Eq. 59), the axial balance of
+the nut, and equal orbit rates across each active contact (Eq. 60).
+
+Block structure: a ball's equations involve only its own state, u and the forces of its (at
+most two) B2B contacts.  Each Newton step therefore solves all the 6x6 ball blocks at once
+(batched LAPACK), reduces to a tridiagonal system in the B2B forces bordered by u (balls
+touch only their neighbours along a chain) and eliminates u by a Schur complement: the cost
+per iteration is linear in the number of balls.  The direction of the B2B friction is held
+at its current value in the Jacobian (its residual is exact), which keeps the blocks
+independent and costs a little contraction, not accuracy.
+
+Complementarity (Eq. 61) is solved exactly by an active set: a contact with a negative force
+is released, a touching inactive pair whose rear ball orbits faster is closed, until neither
+happens.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.linalg import solve_banded
+
+from bb_friction_ros.ball_screw.single_ball import LENGTH_SCALE_M, N_STATE
+
+
+@dataclass
+class Solution:
+    """Result of one equilibrium solve (states normalised as in ``single_ball``)."""
+
+    x: np.ndarray
+    u: float
+    forces: np.ndarray          # B2B forces [N], per candidate pair (0 when inactive)
+    active: np.ndarray          # bool per candidate pair
+    converged: bool
+    iterations: int
+    residual: float
+    terms: dict = field(default_factory=dict)     # last ``BallGrooveModel.evaluate`` output
+    b2b_speed: np.ndarray = None                  # slip speed per candidate pair
+
+
+class EquilibriumSolver:
+    """Solve ball equilibrium for given geometry, load and candidate B2B pairs."""
+
+    def __init__(self, ball_model, b2b_model, settings):
+        """Keep the models and the solver settings (a ``SolverSettings``)."""
+        self.ball = ball_model
+        self.b2b = b2b_model
+        self.settings = settings
+        self.disp_limit = settings.max_step_displacement_m / LENGTH_SCALE_M
+
+    def _residual(self, x, u, f_hat, centres, sign, load_w, scale, rear, front, jac):
+        """Scaled residuals and the Jacobian pieces for a fixed active set."""
+        t = self.ball.evaluate(x, u, centres, sign, jacobian=jac)
+        r_b = self.ball.r_b
+        res = np.concatenate([t["force"], t["moment"] / r_b], axis=1) / scale
+        g_rear = g_front = speed = None
+        if rear.size:
+            g_rear, g_front, speed = self.b2b.unit_terms(x[rear], x[front], sign)
+            np.add.at(res, rear, g_rear * f_hat[:, None])
+            np.add.at(res, front, g_front * f_hat[:, None])
+        axial = (t["axial"].sum() + load_w) / scale
+        cons = x[rear, 2] - x[front, 2]
+        return t, res, axial, cons, g_rear, g_front, speed
+
+    def _newton_step(self, t, res, axial, cons, g_rear, g_front, scale, rear, front, n):
+        """Solve the bordered block system for (dx, du, dF) as described in the docstring."""
+        r_b = self.ball.r_b
+        jac = np.concatenate([t["d_force"], t["d_moment"] / r_b], axis=1) / scale
+        blocks = jac[:, :, :N_STATE]
+        k = rear.size
+        rhs = np.zeros((n, N_STATE, 4))
+        rhs[:, :, 0] = res
+        rhs[:, :, 1] = jac[:, :, N_STATE]
+        if k:
+            rhs[rear, :, 2] = g_rear
+            rhs[front, :, 3] = g_front
+        sol = np.linalg.solve(blocks, rhs)
+        y, z = sol[:, :, 0], sol[:, :, 1]
+        a_row = t["d_axial"][:, :N_STATE] / scale
+        c_u = t["d_axial"][:, N_STATE].sum() / scale
+        schur_u = np.einsum("ij,ij->", a_row, z) - c_u
+        rhs_u = axial - np.einsum("ij,ij->", a_row, y)
+        if k == 0:
+            du = rhs_u / schur_u
+            df = np.zeros(0)
+        else:
+            wr = sol[rear, :, 2]                # J_r^-1 G_rear, per contact
+            wf = sol[front, :, 3]
+            diag = wr[:, 2] - wf[:, 2]
+            # Neighbouring contacts of a chain share a ball: k-1's front is k's rear.
+            shared_lo = np.zeros(k, dtype=bool)
+            shared_lo[1:] = front[:-1] == rear[1:]
+            # C[k, k-1] = +e.W_f[k-1] (ball r_k is the front of k-1); C[k, k+1] = -e.W_r[k+1].
+            sub = np.where(shared_lo[1:], wf[:-1, 2], 0.0)
+            sup = np.where(shared_lo[1:], -wr[1:, 2], 0.0)
+            ab = np.zeros((3, k))
+            ab[0, 1:] = sup
+            ab[1, :] = diag
+            ab[2, :-1] = sub
+            col_u = z[rear, 2] - z[front, 2]
+            rhs_f = cons - (y[rear, 2] - y[front, 2])
+            pq = solve_banded((1, 1), ab, np.stack([rhs_f, col_u], axis=1))
+            row_f = np.einsum("ij,ij->i", a_row[rear], wr) + np.einsum("ij,ij->i",
+                                                                       a_row[front], wf)
+            du = (rhs_u - row_f @ pq[:, 0]) / (schur_u - row_f @ pq[:, 1])
+            df = pq[:, 0] - pq[:, 1] * du
+        dx = y + z * du
+        if k:
+            dx[rear] += sol[rear, :, 2] * df[:, None]
+            dx[front] += sol[front, :, 3] * df[:, None]
+        return -dx, du, df
+
+    def solve_active(self, x, u, f_hat, centres, sign, load_w, scale, rear, front):
+        """Newton iterations for one active set; returns (x, u, f_hat, ok, it, res, t, sp)."""
+        st = self.settings
+        n = x.shape[0]
+        t, res, axial, cons, gr, gf, sp = self._residual(x, u, f_hat, centres, sign, load_w,
+                                                         scale, rear, front, True)
+        norm = max(np.abs(res).max(), abs(axial), np.abs(cons).max() if cons.size else 0.0)
+        it = 0
+        while norm > st.tolerance and it < st.max_iterations:
+            it += 1
+            dx, du, df = self._newton_step(t, res, axial, cons, gr, gf, scale, rear, front, n)
+            # Trust region: near two-point contact the spin about the loaded diagonal is
+            # weakly determined and a full step can run away.
+            big = max(np.abs(dx[:, 2:]).max() / st.max_step_rate,
+                      max(np.abs(dx[:, :2]).max(), abs(du)) / self.disp_limit)
+            step = 1.0 / big if big > 1.0 else 1.0
+            for _ in range(12):
+                xn, un, fn = x + step * dx, u + step * du, f_hat + step * df
+                out = self._residual(xn, un, fn, centres, sign, load_w, scale, rear, front,
+                                     True)
+                nn = max(np.abs(out[1]).max(), abs(out[2]),
+                         np.abs(out[3]).max() if out[3].size else 0.0)
+                if np.isfinite(nn) and (nn < norm or nn <= st.tolerance):
+                    break
+                step *= 0.5
+            x, u, f_hat = xn, un, fn
+            t, res, axial, cons, gr, gf, sp = out
+            norm = nn
+        return x, u, f_hat, bool(norm <= st.tolerance), it, norm, t, sp
+
+    def solve(self, x, u, centres, sign, load_w, scale, pair_rear, pair_front, active,
+              f_guess=None):
+        """Equilibrium with exact B2B complementarity over the candidate (touching) pairs.
+
+        pair_rear/pair_front: ball indices of candidate pairs, in chain order (a pair's
+        front ball is the next pair's rear ball when they share it).  ``active``: initial
+        active set (bool per pair).  Forces returned in newtons.
+        """
+        st = self.settings
+        active = np.asarray(active, dtype=bool).copy()
+        f_all = np.zeros(pair_rear.size) if f_guess is None else np.asarray(f_guess) / scale
+        total_it = 0
+        ok = False
+        for _ in range(st.max_active_set_changes):
+            idx = np.flatnonzero(active)
+            rear, front = pair_rear[idx], pair_front[idx]
+            f0 = np.maximum(f_all[idx], 0.0)
+            x, u, f_hat, ok, it, norm, t, sp = self.solve_active(x, u, f0, centres, sign,
+                                                                 load_w, scale, rear, front)
+            total_it += it
+            f_all = np.zeros(pair_rear.size)
+            f_all[idx] = f_hat
+            if not ok:
+                break
+            changed = False
+            neg = idx[f_hat < -st.tolerance]
+            if neg.size:
+                active[neg] = False
+                changed = True
+            closing = (~active) & (x[pair_rear, 2] * sign > x[pair_front, 2] * sign
+                                   + st.tolerance)
+            if closing.any() and not neg.size:
+                active |= closing
+                changed = True
+            if not changed:
+                break
+        else:
+            ok = False
+        speed = np.zeros(pair_rear.size)
+        if pair_rear.size:
+            speed = self.b2b.unit_terms(x[pair_rear], x[pair_front], sign)[2]
+        return Solution(x=x, u=u, forces=f_all * scale, active=active, converged=ok,
+                        iterations=total_it, residual=norm, terms=t, b2b_speed=speed)
