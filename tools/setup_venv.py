@@ -40,6 +40,12 @@ MSGS_MANIFEST = os.path.join(VENV, '.bb_friction_msgs-install-manifest.txt')
 REQUIREMENTS = os.path.join(ROOT, 'requirements.txt')
 CONSTRAINTS = os.path.join(ROOT, 'constraints.txt')
 PIP = [VENV_PY, '-m', 'pip', '--disable-pip-version-check', '--no-input']
+# A file each stage makes: when it is missing the stage is redone, whatever the stamp says.
+STAGE_OUTPUTS = {
+    'venv': VENV_PY,
+    'msgs': os.path.join(VENV, 'share', 'bb_friction_msgs', 'package.xml'),
+    'package': os.path.join(VENV, 'bin', 'bb-friction'),
+}
 # Marker files that keep colcon (and the ament linters) out of generated trees.
 IGNORE_MARKERS = ('COLCON_IGNORE', 'AMENT_IGNORE')
 # Where the wheels' *__rosidl_generator_pyExport.cmake files were generated.
@@ -149,7 +155,7 @@ def check_tools(names):
 
 def setup_venv():
     if os.path.exists(VENV):
-        log(f'removing stale {os.path.relpath(VENV, ROOT)}/ (pins or set-up script changed)')
+        log('removing .venv/: pins, SETUP_VERSION, interpreter or path changed')
         shutil.rmtree(VENV)
     log(f'creating {os.path.relpath(VENV, ROOT)}/ with {sys.executable}')
     run([sys.executable, '-m', 'venv', VENV], 'creating the virtual environment')
@@ -232,11 +238,10 @@ def verify():
         'checking the bb-friction console script', capture=True)
 
 
-def sane():
-    """Cheap check that what the stamp vouches for is still there."""
-    needed = [VENV_PY, os.path.join(VENV, 'bin', 'bb-friction'),
-              os.path.join(VENV, 'share', 'bb_friction_msgs', 'package.xml')]
-    return all(os.path.exists(p) for p in needed)
+def stale_stages(keys, stamp):
+    """Return the stages whose inputs changed since the stamp, or whose output has gone."""
+    return [stage for stage, output in STAGE_OUTPUTS.items()
+            if stamp.get(stage) != keys[stage] or not os.path.exists(output)]
 
 
 def lock():
@@ -273,8 +278,7 @@ def main(argv=None):
         return
 
     keys = stage_keys()
-    stamp = read_stamp()
-    if not args.force and sane() and all(stamp.get(k) == v for k, v in keys.items()):
+    if not args.force and not stale_stages(keys, read_stamp()):
         log('up to date (.venv/.setup-stamp matches); nothing to do')
         return
 
@@ -282,17 +286,20 @@ def main(argv=None):
     touch_ignore_markers(BUILD)
     with open(os.path.join(BUILD, '.setup.lock'), 'w') as lock_file:
         fcntl.flock(lock_file, fcntl.LOCK_EX)  # one set-up at a time per checkout
-        stamp = {} if args.force else read_stamp()
-        if stamp.get('venv') != keys['venv'] or not os.path.exists(VENV_PY):
+        stamp = {} if args.force else read_stamp()  # another set-up may have just finished
+        stale = stale_stages(keys, stamp)
+        # A stage's key includes the keys of the stages before it, so a stale stage makes all
+        # later ones stale too; only a missing output can make a single later stage stale.
+        if 'venv' in stale:
             setup_venv()
             stamp = {'venv': keys['venv']}
             write_stamp(stamp)
-        if stamp.get('msgs') != keys['msgs']:
+            stale = list(STAGE_OUTPUTS)
+        if 'msgs' in stale:
             build_msgs()
             stamp['msgs'] = keys['msgs']
-            stamp.pop('package', None)
             write_stamp(stamp)
-        if stamp.get('package') != keys['package']:
+        if 'package' in stale or 'msgs' in stale:
             install_package()
             verify()
             stamp['package'] = keys['package']
