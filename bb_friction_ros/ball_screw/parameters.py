@@ -124,6 +124,16 @@ class SolverSettings:
     max_step_displacement_m: float = field(1e-6, "m", "largest Newton change of a ball or "
                                            "nut displacement (trust region)", lo=0.0,
                                            lo_open=True)
+    cold_start_ball_load_n: float = field(25.0, "N", "axial load per ball at which a cold "
+                                          "start is first solved (theta = 0), before "
+                                          "continuation to the actual load and errors",
+                                          lo=0.0, lo_open=True)
+    continuation_load_factor: float = field(1.5, "1", "largest load ratio between two "
+                                            "continuation steps", lo=1.0, lo_open=True,
+                                            hi=10.0)
+    continuation_theta_step_rad: float = field(0.5 * _DEG, "rad", "largest theta change "
+                                               "between two continuation steps", lo=0.0,
+                                               lo_open=True)
     min_axial_load_n: float = field(1e-6, "N", "with zero preload, below this |W| no ball is "
                                     "loaded: zero friction is returned", lo=0.0)
     map_polar_nodes: int = field(160, "1", "polar nodes of the friction map", lo=16,

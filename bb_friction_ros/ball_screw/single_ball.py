@@ -69,11 +69,12 @@ class BallGrooveModel:
         return geo.arc_centres(theta, screw_shift_m, nut_shift_m, self.r_groove, self.r_b,
                                self.beta0)
 
-    def evaluate(self, x, u, centres, sign, jacobian=True):
+    def evaluate(self, x, u, centres, sign, jacobian=True, extra_oversize_m=0.0):
         """Eqs. (44), (48)-(54) for all balls: forces, moments, loss, nut torque, axial force.
 
         x: (N, 6) states; u: nut axial displacement [LENGTH_SCALE_M]; centres: (N, 4, 2) arc
-        centres without u; sign: sign of omega_N (+1 or -1).  Returns a dict of arrays:
+        centres without u; sign: sign of omega_N (+1 or -1); ``extra_oversize_m`` adds a
+        temporary ball oversize (used only by the solver's preload continuation).  Returns:
         force, moment (N, 3) on each ball from its grooves; loss (N,) per |omega_N| [N m];
         nut_torque (N,) [N m]; axial (N,) = z-force of the nut on the ball [N]; load (N, 4);
         angle (N, 4) contact angles; and with ``jacobian`` d_force, d_moment (N, 3, 7) and
@@ -87,7 +88,7 @@ class BallGrooveModel:
         dz = lam * x[:, 1:2] - centres[..., 1] - self.on_nut * (lam * ca * u)
         dist = np.hypot(dx, dz)
         nx, nz = dx / dist, dz / dist
-        delta = dist - self.free_distance
+        delta = dist - (self.free_distance - 0.5 * extra_oversize_m)
         pos = delta > 0.0
         dpos = np.where(pos, delta, 0.0)
         sq = np.sqrt(dpos)

@@ -27,6 +27,16 @@ from scipy.linalg import solve_banded
 from bb_friction_ros.ball_screw.single_ball import LENGTH_SCALE_M, N_STATE
 
 
+def _solve_blocks(a, b):
+    """Batched solve of a @ x = b; singular blocks get a Levenberg-Marquardt shift."""
+    try:
+        return np.linalg.solve(a, b)
+    except np.linalg.LinAlgError:
+        eye = np.eye(a.shape[-1])
+        shift = np.finfo(float).eps ** 0.5 * np.abs(a).max(axis=(-2, -1), keepdims=True)
+        return np.linalg.solve(a + shift * eye, b)
+
+
 @dataclass
 class Solution:
     """Result of one equilibrium solve (states normalised as in ``single_ball``)."""
@@ -51,10 +61,16 @@ class EquilibriumSolver:
         self.b2b = b2b_model
         self.settings = settings
         self.disp_limit = settings.max_step_displacement_m / LENGTH_SCALE_M
+        self.extra_oversize_m = 0.0     # > 0 only during a cold start's continuation
+
+    def _approach_units(self, load_n):
+        """Hertz approach of a screw contact under ``load_n``, in LENGTH_SCALE_M units."""
+        return float(self.ball.hertz[0].approach(load_n)) / LENGTH_SCALE_M
 
     def _residual(self, x, u, f_hat, centres, sign, load_w, scale, rear, front, jac):
         """Scaled residuals and the Jacobian pieces for a fixed active set."""
-        t = self.ball.evaluate(x, u, centres, sign, jacobian=jac)
+        t = self.ball.evaluate(x, u, centres, sign, jacobian=jac,
+                               extra_oversize_m=self.extra_oversize_m)
         r_b = self.ball.r_b
         res = np.concatenate([t["force"], t["moment"] / r_b], axis=1) / scale
         g_rear = g_front = speed = None
@@ -78,7 +94,7 @@ class EquilibriumSolver:
         if k:
             rhs[rear, :, 2] = g_rear
             rhs[front, :, 3] = g_front
-        sol = np.linalg.solve(blocks, rhs)
+        sol = _solve_blocks(blocks, rhs)
         y, z = sol[:, :, 0], sol[:, :, 1]
         a_row = t["d_axial"][:, :N_STATE] / scale
         c_u = t["d_axial"][:, N_STATE].sum() / scale
@@ -114,6 +130,64 @@ class EquilibriumSolver:
             dx[front] += sol[front, :, 3] * df[:, None]
         return -dx, du, df
 
+    def _stage_geometry(self, x, u, centres, sign, load_w, scale):
+        """Cold-start stage: move balls and nut to balance the cross-section forces.
+
+        Rates frozen; unknowns (xi, zeta) per ball and u; equations F_x, F_z per ball and the
+        axial balance.  Brings the ball into its (three-point) contact state before the
+        weakly determined spin about the loaded diagonal is touched (notes' advice 1-3).
+        """
+        st = self.settings
+        rows, cols = [0, 2], [0, 1]
+        limit = max(self.disp_limit, self._approach_units(scale))
+        for _ in range(st.max_iterations):
+            t = self.ball.evaluate(x, u, centres, sign, True, self.extra_oversize_m)
+            res = t["force"][:, rows] / scale
+            axial = (t["axial"].sum() + load_w) / scale
+            if max(np.abs(res).max(), abs(axial)) <= st.tolerance:
+                break
+            jac = t["d_force"][:, rows, :] / scale
+            blk = jac[:, :, cols]
+            y = _solve_blocks(blk, res[..., None])[..., 0]
+            z = _solve_blocks(blk, jac[:, :, N_STATE:N_STATE + 1])[..., 0]
+            a_row = t["d_axial"][:, cols] / scale
+            c_u = t["d_axial"][:, N_STATE].sum() / scale
+            du = (axial - np.einsum("ij,ij->", a_row, y)) / (np.einsum("ij,ij->", a_row, z)
+                                                            - c_u)
+            dx = -(y + z * du)
+            big = max(np.abs(dx).max(), abs(du)) / limit
+            step = 1.0 / big if big > 1.0 else 1.0
+            x = x.copy()
+            x[:, cols] += step * dx
+            u = u + step * du
+        return x, u
+
+    def _stage_rates(self, x, u, centres, sign, scale):
+        """Cold-start stage: orbit and spin rates with the geometry frozen (4 x 4 per ball)."""
+        st = self.settings
+        rows, cols = [1, 3, 4, 5], [2, 3, 4, 5]
+        r_b = self.ball.r_b
+        for _ in range(st.max_iterations):
+            t = self.ball.evaluate(x, u, centres, sign, True, self.extra_oversize_m)
+            res = np.concatenate([t["force"], t["moment"] / r_b], axis=1)[:, rows] / scale
+            if np.abs(res).max() <= st.tolerance:
+                break
+            jac = np.concatenate([t["d_force"], t["d_moment"] / r_b], axis=1)[:, rows, :]
+            dx = -_solve_blocks(jac[:, :, cols] / scale, res[..., None])[..., 0]
+            big = np.abs(dx).max() / st.max_step_rate
+            x = x.copy()
+            x[:, cols] += dx / big if big > 1.0 else dx
+        return x
+
+    def cold_solve(self, x, u, centres, sign, load_w, scale, sweeps=3):
+        """Free balls (no B2B) from a rough start: alternate the two stages, then Newton."""
+        for _ in range(sweeps):
+            x, u = self._stage_geometry(x, u, centres, sign, load_w, scale)
+            x = self._stage_rates(x, u, centres, sign, scale)
+        none = np.zeros(0, dtype=int)
+        return self.solve(x, u, centres, sign, load_w, scale, none, none,
+                          np.zeros(0, dtype=bool))
+
     def solve_active(self, x, u, f_hat, centres, sign, load_w, scale, rear, front):
         """Newton iterations for one active set; returns (x, u, f_hat, ok, it, res, t, sp)."""
         st = self.settings
@@ -127,8 +201,9 @@ class EquilibriumSolver:
             dx, du, df = self._newton_step(t, res, axial, cons, gr, gf, scale, rear, front, n)
             # Trust region: near two-point contact the spin about the loaded diagonal is
             # weakly determined and a full step can run away.
+            disp_limit = max(self.disp_limit, self._approach_units(scale))
             big = max(np.abs(dx[:, 2:]).max() / st.max_step_rate,
-                      max(np.abs(dx[:, :2]).max(), abs(du)) / self.disp_limit)
+                      max(np.abs(dx[:, :2]).max(), abs(du)) / disp_limit)
             step = 1.0 / big if big > 1.0 else 1.0
             for _ in range(12):
                 xn, un, fn = x + step * dx, u + step * du, f_hat + step * df

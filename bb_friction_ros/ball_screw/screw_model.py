@@ -1,0 +1,106 @@
+"""
+Ball screw model objects and the robust cold start of the ball equilibrium.
+
+With zero preload the balls are in three-point contact (notes): the spin about the loaded
+diagonal is only weakly determined and Newton from a two-point guess can run away.  A cold
+start therefore solves one ball with theta = 0 at a reference load per ball, continues in the
+load (displacements scale as W^(2/3)) to the actual load, copies the state to every ball and
+continues theta (and the lead errors) from zero to their actual values with all balls
+coupled.  Every continuation step is a converged Newton solve.
+"""
+
+import math
+
+import numpy as np
+
+from bb_friction_ros.ball_screw.b2b import B2BContactModel
+from bb_friction_ros.ball_screw.single_ball import BallGrooveModel, LENGTH_SCALE_M
+from bb_friction_ros.ball_screw.solver import EquilibriumSolver, Solution
+
+
+class ScrewModel:
+    """Ball-groove, B2B and solver objects built once from a BallScrewConfig."""
+
+    def __init__(self, config):
+        """Build the Hertz constants, friction maps and B2B frames."""
+        self.config = config
+        self.ball = BallGrooveModel(config)
+        self.b2b = B2BContactModel(config, self.ball)
+        self.solver = EquilibriumSolver(self.ball, self.b2b, config.solver)
+
+    def preload_load(self):
+        """Contact load [N] of a centred ball from the oversize alone (0 without preload)."""
+        b = self.ball
+        delta = max(b.r_groove - b.r_b - b.free_distance, 0.0)
+        return float(b.k_load[0] * delta ** 1.5)
+
+    def force_scale(self, n_balls, load_w):
+        """Residual force scale [N]: the larger of the mean axial load per ball and preload."""
+        return max(abs(load_w) / n_balls, self.preload_load())
+
+    def cold_start(self, n_balls, sign, load_w):
+        """Start state: rolling on the diagonal that carries W, with its Hertz approach.
+
+        W > 0 (balls push the nut to +z) loads SL and NR; W < 0 loads SR and NL.
+        """
+        b = self.ball
+        x = b.rolling_guess(n_balls, sign)
+        sb, cb = math.sin(b.beta0), math.cos(b.beta0)
+        q0 = abs(load_w) / (n_balls * b.cos_a * sb)
+        delta = (q0 / b.k_load[0]) ** (2.0 / 3.0)
+        side = 1.0 if load_w >= 0.0 else -1.0
+        x[:, 0] = -delta * cb / LENGTH_SCALE_M
+        x[:, 1] = -side * delta * sb / LENGTH_SCALE_M
+        u = -side * 2.0 * delta / (b.cos_a * sb) / LENGTH_SCALE_M
+        return x, u
+
+    def cold_solve(self, theta, screw_shift_m, nut_shift_m, sign, load_w):
+        """Free balls (no B2B) for per-ball theta and profile shifts, from scratch.
+
+        Returns a ``Solution``; ``converged`` is False if any continuation step failed
+        (the last converged state is returned then).
+        """
+        st = self.config.solver
+        theta = np.atleast_1d(np.asarray(theta, dtype=float))
+        n = theta.size
+        none = np.zeros(0, dtype=int)
+        zero_set = np.zeros(0, dtype=bool)
+        w_ref = math.copysign(st.cold_start_ball_load_n, load_w)
+        centres0 = self.ball.arc_centres(np.zeros(1), 0.0, 0.0)
+        x, u = self.cold_start(1, sign, w_ref)
+        sol = self.solver.solve(x, u, centres0, sign, w_ref, self.force_scale(1, w_ref),
+                                none, none, zero_set)
+        if not sol.converged:
+            sol = self.solver.cold_solve(x, u, centres0, sign, w_ref,
+                                         self.force_scale(1, w_ref))
+        target = load_w / n
+        current = w_ref
+        while sol.converged and current != target:
+            ratio = target / current
+            factor = st.continuation_load_factor
+            step = target if 1.0 / factor <= ratio <= factor else \
+                current * (factor if ratio > 1.0 else 1.0 / factor)
+            grow = (step / current) ** (2.0 / 3.0)
+            x, u = sol.x.copy(), sol.u * grow
+            x[:, :2] *= grow
+            current = step
+            sol = self.solver.solve(x, u, centres0, sign, current,
+                                    self.force_scale(1, current), none, none, zero_set)
+        if not sol.converged:
+            return sol
+        x, u = np.repeat(sol.x, n, axis=0), sol.u
+        screw_shift = np.broadcast_to(np.asarray(screw_shift_m, dtype=float), (n,))
+        nut_shift = np.broadcast_to(np.asarray(nut_shift_m, dtype=float), (n,))
+        steps = max(1, int(math.ceil(np.abs(theta).max() / st.continuation_theta_step_rad)))
+        scale = self.force_scale(n, load_w)
+        for k in range(1, steps + 1):
+            lam = k / steps
+            centres = self.ball.arc_centres(lam * theta, lam * screw_shift, lam * nut_shift)
+            sol = self.solver.solve(x, u, centres, sign, load_w, scale, none, none, zero_set)
+            if not sol.converged:
+                break
+            x, u = sol.x, sol.u
+        return sol
+
+
+__all__ = ["ScrewModel", "Solution", "LENGTH_SCALE_M"]
