@@ -57,7 +57,7 @@ class GeometricErrors:
     ball centre, beta_SL = beta_0 - theta, beta_SR = beta_0 + theta.
     """
 
-    theta_amplitude_rad: float = field(2.0 * _DEG, "rad", "amplitude of the sinusoidal "
+    theta_amplitude_rad: float = field(3.0 * _DEG, "rad", "amplitude of the sinusoidal "
                                        "screw contact-angle deviation theta(phi) (Fig. 19; "
                                        "not given in the paper, see docs)", lo=0.0,
                                        hi=10.0 * _DEG)

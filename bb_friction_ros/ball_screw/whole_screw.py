@@ -1,0 +1,252 @@
+"""
+Whole ball screw with B2B contact, stepped in time (paper Sec. 3.4, Figs. 19-21).
+
+API (a stepping object, for the simulation, a ROS node or bag replay)::
+
+    screw = WholeScrew(config)                 # builds Hertz constants and friction maps
+    screw.reset(nut_angle_rad=0.0)             # balls evenly spaced over the loaded track
+    r = screw.step(nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s)   # StepResult
+
+``step`` takes the MEASURED nut angle: each ball's azimuth advances by its orbit ratio
+omega_B / omega_N (from the previous step) times the nut-angle increment, so the nut may
+reverse or change speed.  The nut velocity sets the direction of friction (its magnitude
+only scales losses: quasi-static Coulomb friction is rate independent); the axial load W is
+the force of the balls on the nut along +z (W > 0 opposes omega_N > 0) and may change sign.
+omega_N = 0 gives zero friction torque and keeps the state (static friction is
+indeterminate in this model).  Each step returns the friction torque on the nut
+T_f = T_nut - W p / 2pi split into ball-groove and B2B parts (by their losses), the drive
+power omega_N T_f and the total loss (equal to solver precision), every ball's azimuth,
+omega_B, contact loads, and the B2B contact groups (ball ids rear-first with their forces).
+
+Model: N balls on a closed loop of ``loaded_turns`` turns in the nut (the return tube has
+zero length, so the first and last balls are neighbours); the nut is rigid and carries W
+through its axial displacement, shared by all balls; bulk elastic deformation of screw and
+nut is left out.  Balls never overlap: after each advance, overlaps are removed by the L2
+projection onto non-overlapping positions (pool-adjacent-violators on the ring).  Contacts
+close and open by the exact complementarity of Eq. (61) (``solver``).
+"""
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bb_friction_ros.ball_screw import geometry as geo
+from bb_friction_ros.ball_screw.screw_model import ScrewModel
+
+
+@dataclass
+class StepResult:
+    """Outputs of one time step (SI units)."""
+
+    t_s: float
+    nut_angle_rad: float
+    nut_velocity_rad_s: float
+    axial_load_n: float
+    torque_total_nm: float
+    torque_b2g_nm: float
+    torque_b2b_nm: float
+    drive_power_w: float
+    loss_w: float
+    converged: bool
+    power_balance_error: float
+    azimuth_rad: np.ndarray
+    theta_rad: np.ndarray
+    omega_b_rad_s: np.ndarray
+    loads_n: np.ndarray
+    b2b_forces_n: np.ndarray          # per ring pair (ball j, ball j+1), 0 if open
+    groups: list = field(default_factory=list)   # [(ball ids rear-first, forces)]
+    iterations: int = 0
+    solve_time_s: float = 0.0
+
+    @property
+    def n_groups(self):
+        """Number of B2B contact groups (chains of touching balls)."""
+        return len(self.groups)
+
+
+def isotonic_ring_projection(azimuth, separation, loop_length):
+    """Move balls the least (L2) so that neighbours on the loop are >= ``separation`` apart.
+
+    Pool-adjacent-violators on y_i = phi_i - i * separation, with the ring cut at its
+    largest gap (occupancy < 1 guarantees one positive gap).
+    """
+    n = azimuth.size
+    gaps = np.diff(np.append(azimuth, azimuth[0] + loop_length)) - separation
+    if gaps.min() >= 0.0:
+        return azimuth
+    cut = int(np.argmax(gaps)) + 1
+    order = (np.arange(n) + cut) % n
+    pos = azimuth[order] + np.where(order < cut, loop_length, 0.0)
+    y = pos - np.arange(n) * separation
+    # Blocks of (mean, count) kept non-decreasing.
+    means, counts = [], []
+    for v in y:
+        means.append(v)
+        counts.append(1)
+        while len(means) > 1 and means[-2] > means[-1]:
+            c = counts[-2] + counts[-1]
+            means[-2] = (means[-2] * counts[-2] + means[-1] * counts[-1]) / c
+            counts[-2] = c
+            means.pop()
+            counts.pop()
+    fitted = np.repeat(means, counts) + np.arange(n) * separation
+    out = np.empty(n)
+    out[order] = fitted - np.where(order < cut, loop_length, 0.0)
+    return out
+
+
+class WholeScrew:
+    """N balls in a recirculating nut, stepped quasi-statically (see module docstring)."""
+
+    def __init__(self, config, model=None):
+        """Build the contact model (or reuse ``model``, a ScrewModel of the same config)."""
+        self.config = config
+        self.model = model if model is not None else ScrewModel(config)
+        tr = config.track
+        self.n = tr.n_balls
+        self.loop = 2.0 * math.pi * tr.loaded_turns
+        self.separation = self.model.b2b.separation
+        if self.n * self.separation >= self.loop:
+            raise ValueError(
+                f"ball_screw.track.n_balls: {self.n} balls need "
+                f"{math.degrees(self.n * self.separation):.1f} deg > loop "
+                f"{math.degrees(self.loop):.1f} deg")
+        self.reset()
+
+    @property
+    def occupancy(self):
+        """Fraction of the loop occupied by balls (97.8 % in Sec. 3.4)."""
+        return self.n * self.separation / self.loop
+
+    def reset(self, nut_angle_rad=0.0):
+        """Balls evenly spaced over the loop, no solved state (next step cold-starts)."""
+        tr = self.config.track
+        self.nut_angle = float(nut_angle_rad)
+        self.time = 0.0
+        self.azimuth = self.nut_angle + tr.track_start_rad \
+            + (np.arange(self.n) + 0.5) * (self.loop / self.n)
+        self.ratio = np.full(self.n, self.model.ball.rolling_guess(1, 1.0)[0, 2])
+        self._state = None          # (x, u, sign, load sign)
+        self._active = np.zeros(self.n, dtype=bool)   # per ring pair (j, j+1)
+        self._forces = np.zeros(self.n)
+
+    def track_azimuth(self):
+        """Screw-frame azimuth of each ball inside the loaded track (Eq. 35's phi)."""
+        start = self.nut_angle + self.config.track.track_start_rad
+        return start + np.mod(self.azimuth - start, self.loop)
+
+    def _centres(self, phi):
+        """Arc centres of every ball from theta(phi) and the lead errors (Figs. 15, 17, 19)."""
+        e = self.config.errors
+        b = self.model.ball
+        theta = geo.theta_deviation(phi, e.theta_amplitude_rad, e.theta_cycles_per_rev,
+                                    e.theta_phase_rad, e.theta_offset_rad)
+        screw_z = e.screw_lead_error_amplitude_m * np.sin(
+            e.screw_lead_error_cycles_per_rev * phi)
+        chi = phi - self.nut_angle - self.config.track.track_start_rad
+        nut_z = e.nut_lead_error_m * (chi - 0.5 * self.loop) / (2.0 * math.pi)
+        return theta, b.arc_centres(theta, screw_z * b.cos_a, nut_z * b.cos_a), \
+            (theta, screw_z * b.cos_a, nut_z * b.cos_a)
+
+    def _pairs(self, sign):
+        """Touching ring pairs as (pair index, rear ball, front ball) in chain order."""
+        gaps = np.diff(np.append(self.azimuth, self.azimuth[0] + self.loop)) \
+            - self.separation
+        touching = gaps <= self.config.solver.gap_tolerance_rad
+        start = int(np.argmax(gaps)) + 1     # chains never cross the largest gap
+        order = (np.arange(self.n) + start) % self.n
+        if sign < 0:
+            order = order[::-1]
+        idx = order[touching[order]]
+        nxt = (idx + 1) % self.n
+        rear, front = (idx, nxt) if sign > 0 else (nxt, idx)
+        return idx, rear, front
+
+    def _zero_result(self, omega_n, load_w, dt_s):
+        """No motion or no load: zero friction, state kept."""
+        return StepResult(
+            t_s=self.time, nut_angle_rad=self.nut_angle, nut_velocity_rad_s=omega_n,
+            axial_load_n=load_w, torque_total_nm=0.0, torque_b2g_nm=0.0, torque_b2b_nm=0.0,
+            drive_power_w=0.0, loss_w=0.0, converged=True, power_balance_error=0.0,
+            azimuth_rad=self.track_azimuth(), theta_rad=self._centres(
+                self.track_azimuth())[0], omega_b_rad_s=self.ratio * omega_n,
+            loads_n=np.zeros((self.n, 4)), b2b_forces_n=np.zeros(self.n))
+
+    def step(self, nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s):
+        """Advance the balls to the measured nut angle and solve the equilibrium there."""
+        t0 = time.perf_counter()
+        d_psi = float(nut_angle_rad) - self.nut_angle
+        self.nut_angle = float(nut_angle_rad)
+        self.time += float(dt_s)
+        self.azimuth = isotonic_ring_projection(self.azimuth + self.ratio * d_psi,
+                                                self.separation, self.loop)
+        omega_n = float(nut_velocity_rad_s)
+        load_w = float(axial_load_n)
+        preload = self.model.preload_load() > 0.0
+        if omega_n == 0.0 or (not preload
+                              and abs(load_w) <= self.config.solver.min_axial_load_n):
+            return self._zero_result(omega_n, load_w, dt_s)
+        sign = 1.0 if omega_n > 0.0 else -1.0
+        phi = self.track_azimuth()
+        theta, centres, shifts = self._centres(phi)
+        pair_idx, rear, front = self._pairs(sign)
+        scale = self.model.force_scale(self.n, load_w)
+        load_sign = 1.0 if load_w >= 0.0 else -1.0
+        sol = None
+        if self._state is not None and self._state[2] == sign and self._state[3] == load_sign:
+            x, u = self._state[0], self._state[1]
+            faster = self.ratio[rear] > self.ratio[front]
+            active = self._active[pair_idx] | faster
+            sol = self.model.solver.solve(x.copy(), u, centres, sign, load_w, scale, rear,
+                                          front, active, self._forces[pair_idx])
+        if sol is None or not sol.converged:
+            free = self.model.cold_solve(*shifts, sign, load_w)
+            ratio = free.x[:, 2] * sign
+            sol = self.model.solver.solve(free.x, free.u, centres, sign, load_w, scale, rear,
+                                          front, ratio[rear] > ratio[front])
+            sol.converged = sol.converged and free.converged
+        return self._finish(sol, sign, omega_n, load_w, theta, phi, pair_idx, rear, front,
+                            t0)
+
+    def _finish(self, sol, sign, omega_n, load_w, theta, phi, pair_idx, rear, front, t0):
+        """Store the state and build the StepResult."""
+        b = self.model.ball
+        self._state = (sol.x, sol.u, sign, 1.0 if load_w >= 0.0 else -1.0)
+        self.ratio = sol.x[:, 2] * sign
+        self._active = np.zeros(self.n, dtype=bool)
+        self._active[pair_idx] = sol.active
+        self._forces = np.zeros(self.n)
+        self._forces[pair_idx] = sol.forces
+        abs_w = abs(omega_n)
+        groove_loss = float(sol.terms["loss"].sum()) * abs_w
+        b2b_loss = float(b.mu * np.sum(sol.forces * sol.b2b_speed)) * abs_w
+        torque = float(sol.terms["nut_torque"].sum()) - load_w * b.r_gear
+        loss = groove_loss + b2b_loss
+        drive = omega_n * torque
+        groups = []
+        chain_ids, chain_f = [], []
+        for k in range(pair_idx.size):
+            if not sol.active[k]:
+                continue
+            r, f = int(rear[k]), int(front[k])
+            if chain_ids and chain_ids[-1] == r:
+                chain_ids.append(f)
+                chain_f.append(float(sol.forces[k]))
+            else:
+                if chain_ids:
+                    groups.append((tuple(chain_ids), tuple(chain_f)))
+                chain_ids, chain_f = [r, f], [float(sol.forces[k])]
+        if chain_ids:
+            groups.append((tuple(chain_ids), tuple(chain_f)))
+        return StepResult(
+            t_s=self.time, nut_angle_rad=self.nut_angle, nut_velocity_rad_s=omega_n,
+            axial_load_n=load_w, torque_total_nm=torque,
+            torque_b2g_nm=groove_loss / omega_n, torque_b2b_nm=b2b_loss / omega_n,
+            drive_power_w=drive, loss_w=loss, converged=bool(sol.converged),
+            power_balance_error=abs(drive - loss) / max(loss, np.finfo(float).tiny),
+            azimuth_rad=phi, theta_rad=theta, omega_b_rad_s=self.ratio * omega_n,
+            loads_n=sol.terms["load"].copy(), b2b_forces_n=self._forces.copy(),
+            groups=groups, iterations=sol.iterations,
+            solve_time_s=time.perf_counter() - t0)
