@@ -34,7 +34,7 @@ class B2BContactModel:
                                                g.lead_m) for s in (1.0, -1.0)}
 
     def slip(self, x_rear, x_front, sign):
-        """Eq. (57): slip (K, 3) of the rear ball on the front one, in the rear's CS_3."""
+        """Eq. (57): return the slip (K, 3) of the rear ball on the front one, rear CS_3."""
         m_r, m_f, rot = self.frames[sign]
         r_b, ell = self.ball.r_b, self.ball.ell
         v_r = np.zeros((x_rear.shape[0], 3))
@@ -47,7 +47,8 @@ class B2BContactModel:
         return s - np.outer(s @ m_r, m_r)
 
     def unit_terms(self, x_rear, x_front, sign):
-        """Eqs. (58)-(59) per unit B2B force: (K, 6) force and moment/R_B on rear and front.
+        """
+        Eqs. (58)-(59) per unit B2B force: (K, 6) force and moment/R_B on rear and front.
 
         Also returns the slip speed |slip| (K,) per |omega_N|, so that the loss is
         mu F |slip| |omega_N|.

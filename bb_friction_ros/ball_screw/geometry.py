@@ -52,7 +52,8 @@ def b2b_contact_angle(ball_radius_m, lead_m, pitch_radius_m):
 
 
 def b2b_contact_separation(ball_radius_m, lead_m, pitch_radius_m):
-    """Azimuth separation of two touching balls on the exact helix: |chord| = 2 R_B.
+    """
+    Azimuth separation of two touching balls on the exact helix: |chord| = 2 R_B.
 
     Eq. (56) puts the balls on a circle of radius L/2pi, for which the separation would be
     2 beta_B2B; on the true helix the chord is slightly shorter, and only this separation
@@ -71,7 +72,8 @@ def b2b_contact_separation(ball_radius_m, lead_m, pitch_radius_m):
 
 
 def b2b_chord_frames(separation_rad, pitch_radius_m, lead_m):
-    """Unit chord from rear to front ball in each ball's CS_3, and the frame rotation.
+    """
+    Return the unit chord from rear to front ball in each ball's CS_3 and the rotation.
 
     ``separation_rad`` is signed: front azimuth minus rear azimuth.  Returns (m_rear,
     m_front, rot) with m_* the chord direction in the rear's / front's CS_3 components and
@@ -93,7 +95,8 @@ def theta_deviation(phi, amplitude_rad, cycles_per_rev, phase_rad, offset_rad):
 
 def arc_centres(theta, screw_shift_m, nut_shift_m, groove_radius_m, ball_radius_m,
                 contact_angle_rad):
-    """Figs. 15, 17: groove-arc centres (x, z) relative to the nominal ball centre.
+    """
+    Figs. 15, 17: groove-arc centres (x, z) relative to the nominal ball centre.
 
     The screw profile is rotated rigidly by -theta about the nominal ball centre
     (beta_SL = beta_0 - theta, beta_SR = beta_0 + theta) and shifted by ``screw_shift_m``
@@ -120,7 +123,8 @@ def arc_centres(theta, screw_shift_m, nut_shift_m, groove_radius_m, ball_radius_
 
 def groove_relative_curvatures(contact, ball_radius_m, groove_radius_m, pitch_radius_m,
                                lead_m, contact_angle_rad, step=1e-4):
-    """Eq. (53)'s Hertz constants need the relative curvatures of ball and helical groove.
+    """
+    Eq. (53)'s Hertz constants need the relative curvatures of ball and helical groove.
 
     The groove surface is the normal-section arc swept along the helix.  Its curvature
     tensor at the nominal contact point is computed from the second fundamental form (finite

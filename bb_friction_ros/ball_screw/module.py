@@ -8,7 +8,6 @@ separation is the B2B contact separation); contact closes if the rear ball orbit
 (Eq. 60), and the rear ball is the faster one by construction, as in the paper's cases.
 """
 
-import math
 import time
 from dataclasses import dataclass
 

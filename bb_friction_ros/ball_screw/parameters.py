@@ -166,7 +166,7 @@ def _merge(base, extra):
 
 
 def load_ball_screw(path=None, overrides=None):
-    """BallScrewConfig from YAML (key ``ball_screw``) and/or nested dict overrides."""
+    """Load a BallScrewConfig from YAML (key ``ball_screw``) and/or nested dict overrides."""
     data = {}
     if path is not None:
         raw = load_yaml(path)

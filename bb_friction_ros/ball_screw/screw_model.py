@@ -39,7 +39,8 @@ class ScrewModel:
         return max(abs(load_w) / n_balls, self.preload_load())
 
     def cold_start(self, n_balls, sign, load_w):
-        """Start state: rolling on the diagonal that carries W, with its Hertz approach.
+        """
+        Start state: rolling on the diagonal that carries W, with its Hertz approach.
 
         W > 0 (balls push the nut to +z) loads SL and NR; W < 0 loads SR and NL.
         """
@@ -55,7 +56,8 @@ class ScrewModel:
         return x, u
 
     def cold_solve(self, theta, screw_shift_m, nut_shift_m, sign, load_w):
-        """Free balls (no B2B) for per-ball theta and profile shifts, from scratch.
+        """
+        Free balls (no B2B) for per-ball theta and profile shifts, from scratch.
 
         Returns a ``Solution``; ``converged`` is False if any continuation step failed
         (the last converged state is returned then).

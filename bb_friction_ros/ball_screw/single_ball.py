@@ -70,7 +70,8 @@ class BallGrooveModel:
                                self.beta0)
 
     def evaluate(self, x, u, centres, sign, jacobian=True, extra_oversize_m=0.0):
-        """Eqs. (44), (48)-(54) for all balls: forces, moments, loss, nut torque, axial force.
+        """
+        Eqs. (44), (48)-(54) for all balls: forces, moments, loss, nut torque, axial force.
 
         x: (N, 6) states; u: nut axial displacement [LENGTH_SCALE_M]; centres: (N, 4, 2) arc
         centres without u; sign: sign of omega_N (+1 or -1); ``extra_oversize_m`` adds a

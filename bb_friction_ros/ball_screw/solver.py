@@ -131,7 +131,8 @@ class EquilibriumSolver:
         return -dx, du, df
 
     def _stage_geometry(self, x, u, centres, sign, load_w, scale):
-        """Cold-start stage: move balls and nut to balance the cross-section forces.
+        """
+        Cold-start stage: move balls and nut to balance the cross-section forces.
 
         Rates frozen; unknowns (xi, zeta) per ball and u; equations F_x, F_z per ball and the
         axial balance.  Brings the ball into its (three-point) contact state before the
@@ -152,8 +153,8 @@ class EquilibriumSolver:
             z = _solve_blocks(blk, jac[:, :, N_STATE:N_STATE + 1])[..., 0]
             a_row = t["d_axial"][:, cols] / scale
             c_u = t["d_axial"][:, N_STATE].sum() / scale
-            du = (axial - np.einsum("ij,ij->", a_row, y)) / (np.einsum("ij,ij->", a_row, z)
-                                                            - c_u)
+            schur = np.einsum("ij,ij->", a_row, z) - c_u
+            du = (axial - np.einsum("ij,ij->", a_row, y)) / schur
             dx = -(y + z * du)
             big = max(np.abs(dx).max(), abs(du)) / limit
             step = 1.0 / big if big > 1.0 else 1.0
@@ -221,7 +222,8 @@ class EquilibriumSolver:
 
     def solve(self, x, u, centres, sign, load_w, scale, pair_rear, pair_front, active,
               f_guess=None):
-        """Equilibrium with exact B2B complementarity over the candidate (touching) pairs.
+        """
+        Equilibrium with exact B2B complementarity over the candidate (touching) pairs.
 
         pair_rear/pair_front: ball indices of candidate pairs, in chain order (a pair's
         front ball is the next pair's rear ball when they share it).  ``active``: initial

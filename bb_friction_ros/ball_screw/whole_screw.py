@@ -62,12 +62,13 @@ class StepResult:
 
     @property
     def n_groups(self):
-        """Number of B2B contact groups (chains of touching balls)."""
+        """Return the number of B2B contact groups (chains of touching balls)."""
         return len(self.groups)
 
 
 def isotonic_ring_projection(azimuth, separation, loop_length):
-    """Move balls the least (L2) so that neighbours on the loop are >= ``separation`` apart.
+    """
+    Move balls the least (L2) so that neighbours on the loop are >= ``separation`` apart.
 
     Pool-adjacent-violators on y_i = phi_i - i * separation, with the ring cut at its
     largest gap (occupancy < 1 guarantees one positive gap).

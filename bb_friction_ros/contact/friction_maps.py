@@ -247,15 +247,18 @@ class FrictionMapSphere:
 
         arrays = _cached("sphere", (round(self.ellipticity, 12), self.n_polar, self.n_azimuth),
                          build)
-        self._v, self._dt, self._dh, self._dth = (arrays[k] for k in ("values", "dt", "dh", "dth"))
+        self._v, self._dt, self._dh, self._dth = (arrays[k] for k in ("values", "dt", "dh",
+                                                                        "dth"))
         self._coef = self._cell_coefficients()
 
     def _cell_coefficients(self):
-        """Power-basis coefficients of the bicubic Hermite patch of every cell.
+        """
+        Power-basis coefficients of the bicubic Hermite patch of every cell.
 
         Shape (n_polar * n_azimuth, 4, 16): per cell, power j of s_h, then output o and
-        power i of s_t at index 4 o + i (contiguous slices for the Horner steps).  Built from the node tables once per map so an
-        evaluation is a single gather and a polynomial (no Python loop over corners).
+        power i of s_t at index 4 o + i (contiguous slices for the Horner steps).  Built from
+        the node tables once per map so an evaluation is a single gather and a polynomial
+        (no Python loop over corners).
         """
         n_t, n_h = self.n_polar, self.n_azimuth
         i0 = np.arange(n_t)[:, None]
