@@ -247,8 +247,8 @@ class FrictionMapSphere:
 
         arrays = _cached("sphere", (round(self.ellipticity, 12), self.n_polar, self.n_azimuth),
                          build)
-        self._v, self._dt, self._dh, self._dth = (arrays[k] for k in ("values", "dt", "dh",
-                                                                        "dth"))
+        names = ("values", "dt", "dh", "dth")
+        self._v, self._dt, self._dh, self._dth = (arrays[k] for k in names)
         self._coef = self._cell_coefficients()
 
     def _cell_coefficients(self):
