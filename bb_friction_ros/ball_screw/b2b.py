@@ -34,7 +34,7 @@ class B2BContactModel:
                                                g.lead_m) for s in (1.0, -1.0)}
 
     def slip(self, x_rear, x_front, sign):
-        """Eq. (57): rear-on-front slip (K, 3) at the B2B point, in the rear ball's CS_3."""
+        """Eq. (57): rear-on-front velocity at each B2B point, as K rows in the rear CS_3."""
         m_r, m_f, rot = self.frames[sign]
         r_b, ell = self.ball.r_b, self.ball.ell
         v_r = np.zeros((x_rear.shape[0], 3))
