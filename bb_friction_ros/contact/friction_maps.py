@@ -213,7 +213,8 @@ class FrictionMapLine:
 
 
 class FrictionMapSphere:
-    """Friction map for a general slip (V_X, V_Y) and spin w: needed in ball screws (c and d).
+    """
+    Friction map for a general slip (V_X, V_Y) and spin w: needed in ball screws (c and d).
 
     Rate direction (V_X/a, V_Y/a, w) = (sin t cos h, sin t sin h, cos t), t in [0, pi],
     h in [0, 2 pi).  Bicubic Hermite on a uniform (t, h) grid; t is extended by reflection
