@@ -92,6 +92,114 @@ def _run_reproduce(args):
     return 0
 
 
+def _add_replay_parser(sub):
+    p = sub.add_parser("replay", help="run a rosbag2 recording (sqlite3 or mcap) through the "
+                       "live node's model path, offline")
+    p.add_argument("bag", help="rosbag2 directory")
+    p.add_argument("--config", help="ball-screw YAML (default: bundled config/ball_screw.yaml)")
+    p.add_argument("--params-file", help="the node's ROS params file: nut_joint, "
+                   "model_rate_hz, max_axial_load_n (and config_file) are taken from it")
+    p.add_argument("--nut-joint", help="joint name in nut_state (overrides the params file)")
+    p.add_argument("--model-rate-hz", type=float, help="model steps per second of input time")
+    p.add_argument("--measured-topic", default="measured_torque",
+                   help="measured torque topic (geometry_msgs/WrenchStamped torque.z)")
+    p.add_argument("--out", required=True, help="output directory")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_run_replay)
+
+
+def _replay_settings(args):
+    import dataclasses
+    from bb_friction_ros.replay import ReplaySettings
+    settings, config = ReplaySettings(), None
+    if args.params_file:
+        settings, config = ReplaySettings.from_params_file(args.params_file)
+    changes = {}
+    if args.nut_joint:
+        changes["nut_joint"] = args.nut_joint
+    if args.model_rate_hz is not None:
+        if not (math.isfinite(args.model_rate_hz) and args.model_rate_hz > 0):
+            raise ConfigError(f"--model-rate-hz: must be > 0, got {args.model_rate_hz}")
+        changes["model_rate_hz"] = args.model_rate_hz
+    return dataclasses.replace(settings, **changes), args.config or config or None
+
+
+def _run_replay(args):
+    from bb_friction_ros.bags import Topics
+    from bb_friction_ros.replay import replay
+    settings, config = _replay_settings(args)
+    try:
+        summary = replay(args.bag, args.out, config=config, settings=settings,
+                         topics=Topics(measured_torque=args.measured_topic),
+                         progress=not args.no_progress)
+    except (FileNotFoundError, ValueError) as exc:
+        print(f"bb-friction replay: {exc}", file=sys.stderr)
+        return 2
+    print(json.dumps({k: summary[k] for k in ("samples", "rejected", "speed_vs_realtime")
+                      + (("rmse_nm",) if "rmse_nm" in summary else ())}))
+    print(f"outputs in {args.out}")
+    return 0
+
+
+def _add_node_parser(sub):
+    p = sub.add_parser("node", help="start the live friction_node (same as the friction_node "
+                       "console script)")
+    p.add_argument("--params-file", help="ROS params file with friction_node: ros__parameters")
+    p.set_defaults(func=_run_node)
+
+
+def _run_node(args):
+    from bb_friction_ros.node import main as node_main
+    ros_args = ["--ros-args"] + (["--params-file", args.params_file] if args.params_file
+                                 else [])
+    return node_main(["bb-friction-node"] + ros_args)
+
+
+def _add_demo_parsers(sub):
+    p = sub.add_parser("make-demo-bag", help="generate the demo recording (reversing nut "
+                       "motion, varying load, synthetic measured torque)")
+    p.add_argument("--out", required=True, help="bag directory to create")
+    p.add_argument("--storage", choices=("sqlite3", "mcap"), default="mcap")
+    p.add_argument("--recording", help="demo_recording YAML (default: bundled)")
+    p.set_defaults(func=_run_make_demo_bag)
+    p = sub.add_parser("demo", help="play the demo recording through the live node "
+                       "in-process, then replay it; write reports")
+    p.add_argument("--out", required=True, help="output directory")
+    p.add_argument("--speed", type=float, default=1.0, help="playback speed factor")
+    p.set_defaults(func=_run_demo)
+
+
+def _run_make_demo_bag(args):
+    from bb_friction_ros.bags import write_events
+    events = _demo_events(args.recording)
+    write_events(args.out, events, storage=args.storage)
+    print(f"demo recording: {args.out} ({sum(e.kind == 'nut_state' for e in events)} "
+          "nut_state messages)")
+    return 0
+
+
+def _demo_events(recording=None):
+    from bb_friction_ros.config import bundled_config
+    from bb_friction_ros.demo import load_demo_recording, make_demo_events
+    from bb_friction_ros.replay import ReplaySettings, run_events
+    from bb_friction_ros.runner import build_runner, InputAssembler
+    cfg = load_demo_recording(recording or bundled_config("demo_recording.yaml"))
+    settings = ReplaySettings(nut_joint=cfg.nut_joint)
+
+    def predict(events):
+        runner = build_runner(bundled_config("ball_screw.yaml"), settings.model_rate_hz)
+        assembler = InputAssembler(settings.nut_joint, settings.max_axial_load_n)
+        return [p.torque_total_nm for p in run_events(events, runner, assembler)]
+
+    return make_demo_events(cfg, predict)
+
+
+def _run_demo(args):
+    from pathlib import Path
+    from bb_friction_ros.demo import run_demo
+    return run_demo(Path(args.out), _demo_events(), speed=args.speed)
+
+
 def build_parser():
     """Return the top-level argument parser with one sub-parser per command."""
     parser = argparse.ArgumentParser(prog="bb-friction", description=__doc__.splitlines()[0])
@@ -99,6 +207,9 @@ def build_parser():
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     _add_linear_parser(sub)
     _add_reproduce_parser(sub)
+    _add_replay_parser(sub)
+    _add_node_parser(sub)
+    _add_demo_parsers(sub)
     try:
         from bb_friction_ros.ball_screw import cli as screw_cli
     except ImportError:

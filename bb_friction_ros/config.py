@@ -190,3 +190,25 @@ def load_linear_bearing(path=None, overrides=None):
         data = dict(raw.get("linear_bearing", raw))
     data.update(overrides or {})
     return from_mapping(LinearBearingConfig, data, "linear_bearing")
+
+
+def bundled_config(name):
+    """
+    Return the path of a bundled config file such as ``ball_screw.yaml``.
+
+    Looks in the source tree (editable installs, as in .venv) and then in the installed
+    share directory (colcon: ``share/bb_friction_ros/config``).
+    """
+    import sys
+    here = Path(__file__).resolve().parent.parent / "config" / name
+    candidates = [here, Path(sys.prefix) / "share" / "bb_friction_ros" / "config" / name]
+    try:
+        from ament_index_python.packages import get_package_share_directory
+        candidates.append(Path(get_package_share_directory("bb_friction_ros")) / "config" / name)
+    except Exception:       # no ament index (plain venv) or package not registered
+        pass
+    for path in candidates:
+        if path.is_file():
+            return path
+    raise ConfigError(f"{name}: bundled config not found (looked in "
+                      f"{', '.join(str(c.parent) for c in candidates)})")

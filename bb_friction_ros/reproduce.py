@@ -42,6 +42,15 @@ def _row(key, ours, note=""):
             "note": note}
 
 
+def _normalise(row):
+    """Give a row the report's columns: absolute and relative deviation, source."""
+    paper, ours = row.get("paper"), row.get("ours")
+    numeric = isinstance(paper, (int, float)) and isinstance(ours, (int, float))
+    dev = float(ours - paper) if numeric else None
+    return dict(row, source=row.get("source", ""), deviation=dev,
+                relative_deviation=dev / abs(paper) if numeric and paper else None)
+
+
 def _plt():
     import matplotlib
     matplotlib.use("Agg")
@@ -187,7 +196,7 @@ def reproduce(out, cfg, grid=25):
     except ImportError:
         reproduce_ball_screw = None
     if reproduce_ball_screw is not None:
-        screw_rows = reproduce_ball_screw(out)
+        screw_rows = [_normalise(r) for r in reproduce_ball_screw(out)]
         sections.append(("Ball screw (Sec. 3)", screw_rows))
         figs += sorted(p for p in out.glob("fig1[2-9]*.png")) + sorted(out.glob("fig2*.png"))
     (out / "reproduction.json").write_text(json.dumps(
@@ -203,7 +212,8 @@ def reproduce(out, cfg, grid=25):
             if r.get("relative_deviation") is not None:
                 dev += f" ({r['relative_deviation'] * 100:+.2f} %)"
             paper = "" if r["paper"] is None else f"{r['paper']:.4g}"
-            lines.append(f"| {r['quantity']} | {r['source']} | {paper} | {r['ours']:.4g} | "
+            ours = "" if r["ours"] is None else f"{r['ours']:.4g}"
+            lines.append(f"| {r['quantity']} | {r['source']} | {paper} | {ours} | "
                          f"{dev} | {r['unit']} | {r['note']} |")
         lines.append("")
     lines += ["## Figures", ""] + [f"![{p.stem}]({p.name})" for p in figs]

@@ -1,4 +1,5 @@
-"""Coulomb friction over a Hertz ellipse, Eqs. (A4)-(A7), as tabulated maps.
+"""
+Coulomb friction over a Hertz ellipse, Eqs. (A4)-(A7), as tabulated maps.
 
 Contact-plane frame: X along the major semi-axis a (across the groove), Y along the minor
 semi-axis b (the rolling direction), normal Z = X x Y.  The slip of the ball relative to the
@@ -35,7 +36,8 @@ _NORM = 3.0 / (2.0 * math.pi)   # weight (3/(2 pi k)) sqrt(1-X^2-Y^2/k^2), times
 
 
 def _ray_integrals_inside(p, e):
-    """Closed-form K1 = int_0^rho2 sqrt(q) r dr and K2 = int sqrt(q) r^2 dr, start inside.
+    """
+    Closed-form K1 = int_0^rho2 sqrt(q) r dr and K2 = int sqrt(q) r^2 dr, start inside.
 
     In the unit-disc (primed) frame, q(r) = h^2 - (r - m)^2 with m = -p.e, h^2 = 1 - (p x e)^2.
     """
@@ -58,7 +60,8 @@ def _ray_integrals_inside(p, e):
 
 
 def _rate_direction_integrals(vx, vy, w, k, n_inside=1024, n_outside=96):
-    """Normalised (fX, fY, m, p) for rate directions (vx, vy, w) with vx^2+vy^2+w^2 = 1.
+    """
+    Normalised (fX, fY, m, p) for rate directions (vx, vy, w) with vx^2+vy^2+w^2 = 1.
 
     vx, vy are V/a; arrays of equal shape.  Pure sliding (w = 0) is the exact limit.
     """
@@ -166,7 +169,8 @@ def _periodic_node_slopes(values, step):
 
 
 class FrictionMapLine:
-    """Friction map for slip along the rolling direction only (V_X = 0): the paper's Fig. 5.
+    """
+    Friction map for slip along the rolling direction only (V_X = 0): the paper's Fig. 5.
 
     Rate angle u = atan2(V_Y / a, w) in (-pi, pi]; the paper's c/a = -tan(u).
     """

@@ -1,0 +1,227 @@
+"""
+Input validation and the model runner shared by the live node and bag replay.
+
+The node and ``bb-friction replay`` both feed samples, in order, to one ``ModelRunner``: the
+same validation, the same model-step schedule (driven by header stamps, never by wall time)
+and the same prediction rule.  Given the same accepted samples they give the same output,
+which is what makes replay a faithful stand-in for the live node.
+
+Schedule: the whole-screw model steps when the input stamps have advanced by at least one
+model period (``1 / model_rate_hz``) since its last step; it then advances the ball azimuths
+by the measured nut rotation since that step.  Every nut-state sample gets a prediction from
+the latest model state (zero-order hold; its age is reported), so the output keeps the input
+rate while the model runs at its own rate.
+"""
+
+from collections import Counter
+from dataclasses import dataclass, field
+import math
+import time
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class InputSample:
+    """One nut-state sample with the axial load held at its stamp (SI units)."""
+
+    stamp_s: float
+    nut_angle_rad: float
+    nut_velocity_rad_s: float
+    axial_load_n: float
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """Predicted friction torque for one input sample (friction only: no load torque)."""
+
+    stamp_s: float
+    nut_angle_rad: float
+    nut_velocity_rad_s: float
+    axial_load_n: float
+    torque_total_nm: float
+    torque_b2g_nm: float
+    torque_b2b_nm: float
+    converged: bool
+    model_age_s: float          # input time since the model state used was computed
+    groups: tuple               # ((ball ids rear first), (b2b forces N)) per contact group
+    n_balls: int
+    stepped: bool               # this sample triggered a model step
+
+
+class InputError(ValueError):
+    """An input message is rejected; ``reason`` is a short key counted in diagnostics."""
+
+    def __init__(self, reason, detail):
+        """Keep the counted reason key and the human-readable detail."""
+        super().__init__(f"{reason}: {detail}")
+        self.reason = reason
+
+
+def joint_state_sample(names, positions, velocities, joint):
+    """
+    Return (angle, velocity) of ``joint`` from JointState arrays, or raise InputError.
+
+    Reasons: ``empty``, ``wrong_joint``, ``missing_velocity``, ``non_finite``.
+    """
+    if len(names) == 0 or len(positions) == 0:
+        raise InputError("empty", "JointState has no joints")
+    try:
+        i = list(names).index(joint)
+    except ValueError:
+        raise InputError("wrong_joint", f"no joint named {joint!r} (got {list(names)})")
+    if i >= len(positions):
+        raise InputError("empty", f"joint {joint!r} has no position")
+    if i >= len(velocities):
+        raise InputError("missing_velocity", f"joint {joint!r} has no velocity")
+    angle, velocity = float(positions[i]), float(velocities[i])
+    if not (math.isfinite(angle) and math.isfinite(velocity)):
+        raise InputError("non_finite", f"position {angle}, velocity {velocity}")
+    return angle, velocity
+
+
+def axial_load_value(force_z_n, max_axial_load_n):
+    """
+    Return the axial load [N] from WrenchStamped force.z, or raise InputError.
+
+    The sign is kept (it says which flank carries the load); magnitudes above
+    ``max_axial_load_n`` are rejected as ``absurd_load``.
+    """
+    value = float(force_z_n)
+    if not math.isfinite(value):
+        raise InputError("non_finite", f"force.z = {value}")
+    if abs(value) > max_axial_load_n:
+        raise InputError("absurd_load", f"|force.z| = {abs(value):.6g} N exceeds "
+                         f"max_axial_load_n = {max_axial_load_n:.6g} N")
+    return value
+
+
+@dataclass
+class RunnerStats:
+    """Counters reported in diagnostics."""
+
+    samples: int = 0
+    model_steps: int = 0
+    nonconverged_steps: int = 0
+    skipped_steps: int = 0
+    resets: int = 0
+    rejected: Counter = field(default_factory=Counter)
+    last_step_wall_s: float = 0.0
+
+
+class ModelRunner:
+    """
+    Drive a whole-screw model from a stream of input samples (see module docstring).
+
+    ``screw`` must provide ``reset(nut_angle_rad)`` and
+    ``step(nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s)`` returning a result with
+    ``torque_total_nm``, ``torque_b2g_nm``, ``torque_b2b_nm``, ``converged``, ``groups`` and
+    ``n_balls``.
+    """
+
+    def __init__(self, screw, model_rate_hz):
+        """Wrap ``screw``; it steps at most once per 1/model_rate_hz of input time."""
+        if not model_rate_hz > 0:
+            raise ValueError(f"model_rate_hz must be > 0, got {model_rate_hz}")
+        self.screw = screw
+        self.period_s = 1.0 / model_rate_hz
+        self.stats = RunnerStats()
+        self._last_stamp = None
+        self._model_stamp = None
+        self._state = None
+
+    def reset(self):
+        """Forget the model state; the next sample starts a new run."""
+        self._last_stamp = None
+        self._model_stamp = None
+        self._state = None
+
+    def reject(self, reason):
+        """Count an input rejected before it reached the runner."""
+        self.stats.rejected[reason] += 1
+
+    def process(self, sample, allow_step=True):
+        """
+        Advance the model if a step is due and return the Prediction for ``sample``.
+
+        With ``allow_step=False`` (the live node catching up on a backlog: only the newest
+        input may step the model) the sample is answered from the current state, and a
+        step it would have triggered is counted in ``stats.skipped_steps``.
+        """
+        if self._last_stamp is not None and sample.stamp_s < self._last_stamp:
+            # A bag loop or a restarted source: the balls' history no longer applies.
+            self.stats.resets += 1
+            self.reset()
+        self.stats.samples += 1
+        self._last_stamp = sample.stamp_s
+        stepped = False
+        if self._state is None:
+            self.screw.reset(sample.nut_angle_rad)
+            self._state = self._step(sample, 0.0)
+            self._model_stamp = sample.stamp_s
+            stepped = True
+        elif sample.stamp_s - self._model_stamp >= self.period_s - 1e-12:
+            if allow_step:
+                self._state = self._step(sample, sample.stamp_s - self._model_stamp)
+                self._model_stamp = sample.stamp_s
+                stepped = True
+            else:
+                self.stats.skipped_steps += 1
+        st = self._state
+        return Prediction(sample.stamp_s, sample.nut_angle_rad, sample.nut_velocity_rad_s,
+                          sample.axial_load_n, st.torque_total_nm, st.torque_b2g_nm,
+                          st.torque_b2b_nm, bool(st.converged),
+                          sample.stamp_s - self._model_stamp, _groups(st.groups),
+                          int(np.size(st.azimuth_rad)), stepped)
+
+    def _step(self, sample, dt_s):
+        t0 = time.perf_counter()
+        res = self.screw.step(sample.nut_angle_rad, sample.nut_velocity_rad_s,
+                              sample.axial_load_n, dt_s)
+        self.stats.last_step_wall_s = time.perf_counter() - t0
+        self.stats.model_steps += 1
+        if not res.converged:
+            self.stats.nonconverged_steps += 1
+        return res
+
+
+class InputAssembler:
+    """
+    Turn the two input streams into InputSamples, exactly as the node receives them.
+
+    Axial-load messages update the held load; each nut-state message becomes a sample with
+    the load held at that moment (arrival order, as ``ros2 bag play`` reproduces it).
+    Raises InputError with a counted reason for anything unusable.
+    """
+
+    def __init__(self, nut_joint, max_axial_load_n):
+        """Validate nut-state messages against ``nut_joint`` and loads against the limit."""
+        self.nut_joint = nut_joint
+        self.max_axial_load_n = max_axial_load_n
+        self.load_n = None
+
+    def on_axial_load(self, force_z_n):
+        """Hold a new axial load [N]."""
+        self.load_n = axial_load_value(force_z_n, self.max_axial_load_n)
+
+    def on_nut_state(self, stamp_s, names, positions, velocities):
+        """Return the InputSample of a nut-state message."""
+        if not math.isfinite(stamp_s):
+            raise InputError("non_finite", f"stamp {stamp_s}")
+        angle, velocity = joint_state_sample(names, positions, velocities, self.nut_joint)
+        if self.load_n is None:
+            raise InputError("no_load_yet", "no valid axial_load received yet")
+        return InputSample(stamp_s, angle, velocity, self.load_n)
+
+
+def build_runner(config_path, model_rate_hz):
+    """Build a ModelRunner around the whole-screw model of a ball-screw YAML config."""
+    from bb_friction_ros.ball_screw.parameters import load_ball_screw
+    from bb_friction_ros.ball_screw.whole_screw import WholeScrew
+    return ModelRunner(WholeScrew(load_ball_screw(config_path)), model_rate_hz)
+
+
+def _groups(groups):
+    """Convert groups to hashable tuples ((ball ids), (forces N)) for change detection."""
+    return tuple((tuple(int(i) for i in ids), tuple(float(f) for f in forces))
+                 for ids, forces in groups)
