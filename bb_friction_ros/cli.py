@@ -10,6 +10,7 @@ import math
 import sys
 
 from bb_friction_ros import __version__
+from bb_friction_ros.ball_screw import cli as screw_cli
 from bb_friction_ros.config import ConfigError, load_linear_bearing
 
 
@@ -210,14 +211,8 @@ def build_parser():
     _add_replay_parser(sub)
     _add_node_parser(sub)
     _add_demo_parsers(sub)
-    try:
-        from bb_friction_ros.ball_screw import cli as screw_cli
-    except ImportError:
-        screw_cli = None
-    if screw_cli is not None:
-        for name in ("add_screw_pair_parser", "add_screw_sim_parser"):
-            if hasattr(screw_cli, name):
-                getattr(screw_cli, name)(sub)
+    screw_cli.add_screw_pair_parser(sub)
+    screw_cli.add_screw_sim_parser(sub)
     return parser
 
 

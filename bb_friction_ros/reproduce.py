@@ -13,6 +13,7 @@ import time
 
 import numpy as np
 
+from bb_friction_ros.ball_screw.reproduce import reproduce_ball_screw
 from bb_friction_ros.linear_bearing.case_study import LinearPairCase
 from bb_friction_ros.linear_bearing.mitigation import two_ball_relative_motion
 
@@ -191,14 +192,10 @@ def reproduce(out, cfg, grid=25):
     out.mkdir(parents=True, exist_ok=True)
     rows, figs = reproduce_linear(out, cfg, grid=grid)
     sections = [("Linear ball bearing (Sec. 2)", rows)]
-    try:
-        from bb_friction_ros.ball_screw.reproduce import reproduce_ball_screw
-    except ImportError:
-        reproduce_ball_screw = None
-    if reproduce_ball_screw is not None:
-        screw_rows = [_normalise(r) for r in reproduce_ball_screw(out)]
-        sections.append(("Ball screw (Sec. 3)", screw_rows))
-        figs += sorted(p for p in out.glob("fig1[2-9]*.png")) + sorted(out.glob("fig2*.png"))
+    screw_rows = [_normalise(r) for r in reproduce_ball_screw(out)]
+    sections.append(("Ball screw (Sec. 3)", screw_rows))
+    figs += [p for p in (out / "fig20_ball_distance.png", out / "fig21_torque_split.png")
+             if p.exists()]
     (out / "reproduction.json").write_text(json.dumps(
         {title: rs for title, rs in sections}, indent=2))
     lines = ["# Reproduction of Lin, Duan, Okwudire (ASME J. Tribol. 2019)", "",
