@@ -114,7 +114,7 @@ def run_demo(out, events, speed=1.0):
     n_inputs = sum(e.kind == "nut_state" for e in events)
     print(f"demo recording: {bag} ({n_inputs} nut_state messages); playing it through "
           f"friction_node at {speed:g}x ...", flush=True)
-    preds, groups, diag = play_through_node(events, {"reliable_qos": True}, speed=speed)
+    preds, groups, diag, _ = play_through_node(events, {"reliable_qos": True}, speed=speed)
     live = out / "live"
     live.mkdir(exist_ok=True)
     lat = np.array([p["model_latency_s"] for p in preds])

@@ -85,6 +85,7 @@ class FrictionNode(Node):
         self._assembler = InputAssembler(p["nut_joint"], p["max_axial_load_n"])
         self._dropped = 0
         self._rejected = collections.Counter()
+        self._rejected_states = 0
         self._received = collections.Counter()
         self._published = 0
         self._latest = None
@@ -123,6 +124,7 @@ class FrictionNode(Node):
                                                       msg.velocity)
             except InputError as err:
                 self._rejected[err.reason] += 1
+                self._rejected_states += 1
                 return
             if len(self._queue) == self._queue.maxlen:
                 self._dropped += 1      # deque drops the oldest: the newest input wins
@@ -202,14 +204,15 @@ class FrictionNode(Node):
                       for ids, forces in pred.groups]
         self._pub_groups.publish(msg)
 
-    def diagnostics_values(self):
-        """Return the diagnostics key/values (also used by tests)."""
+    def diagnostics_values(self, advance=True):
+        """Return the diagnostics key/values; ``advance`` starts a new rate window."""
         with self._lock:
             stats = self._runner.stats
             now = time.monotonic()
             steps0, t0 = self._steps_at_diag
             rate = (stats.model_steps - steps0) / max(now - t0, 1e-9)
-            self._steps_at_diag = (stats.model_steps, now)
+            if advance:
+                self._steps_at_diag = (stats.model_steps, now)
             latest = self._latest
             values = {
                 "model_rate_hz": rate,
@@ -225,6 +228,7 @@ class FrictionNode(Node):
                 "received_nut_state": self._received["nut_state"],
                 "received_axial_load": self._received["axial_load"],
                 "rejected_total": sum(self._rejected.values()),
+                "rejected_nut_state": self._rejected_states,
             }
             for reason, n in sorted(self._rejected.items()):
                 values[f"rejected_{reason}"] = n
@@ -293,13 +297,16 @@ def _stamp_msg(stamp_s):
     return Time(sec=sec, nanosec=nanosec)
 
 
-def play_through_node(events, parameters=None, context=None, speed=1.0, settle_s=10.0):
+def play_through_node(events, parameters=None, context=None, speed=1.0, settle_s=10.0,
+                      lockstep=False):
     """
     Publish recorded events to an in-process FrictionNode and collect what it publishes.
 
     Events go out at their recorded pace divided by ``speed`` (publisher -> node ->
-    subscriber, all in this process).  Returns (predictions as Prediction-like dicts,
-    contact-group messages, the node's diagnostics values).
+    subscriber, all in this process).  With ``lockstep`` each message waits until the node
+    has taken it (and answered or rejected a nut state) before the next goes out: exact
+    comparisons with replay then never depend on machine load.  Returns (predictions as Prediction-like dicts,
+    contact-group messages, the node's diagnostics values, DiagnosticArray messages).
     """
     from rclpy.parameter import Parameter
     from rclpy.executors import MultiThreadedExecutor
@@ -314,7 +321,8 @@ def play_through_node(events, parameters=None, context=None, speed=1.0, settle_s
     in_qos = reliable if node.get_parameter("reliable_qos").value else qos_profile_sensor_data
     pub_state = io.create_publisher(JointState, "nut_state", in_qos)
     pub_load = io.create_publisher(WrenchStamped, "axial_load", in_qos)
-    preds, groups = [], []
+    preds, groups, diags = [], [], []
+    io.create_subscription(DiagnosticArray, "/diagnostics", diags.append, reliable)
     io.create_subscription(FrictionPrediction, "friction/prediction",
                            lambda m: preds.append(_prediction_dict(m)), reliable)
     io.create_subscription(ContactGroupStatus, "friction/contact_groups", groups.append,
@@ -325,10 +333,10 @@ def play_through_node(events, parameters=None, context=None, speed=1.0, settle_s
     spinner = threading.Thread(target=executor.spin, daemon=True)
     spinner.start()
     try:
-        _wait_for_match(pub_state, pub_load)
+        _wait_for_match(node, pub_state, pub_load)
         t_wall0 = time.monotonic()
         t_rec0 = None
-        sent = 0
+        sent = sent_loads = 0
         for ev in events:
             if ev.kind == "measured_torque":
                 continue
@@ -347,6 +355,10 @@ def play_through_node(events, parameters=None, context=None, speed=1.0, settle_s
                 msg.header.stamp = _stamp_msg(ev.stamp_s)
                 msg.wrench.force.z = float(ev.value)
                 pub_load.publish(msg)
+                sent_loads += 1
+            if lockstep:
+                _wait_until(node, lambda v: v["received_axial_load"] >= sent_loads
+                            and v["published"] + v["rejected_nut_state"] >= sent)
         deadline = time.monotonic() + settle_s
         while time.monotonic() < deadline:
             values, _ = node.diagnostics_values()
@@ -363,16 +375,28 @@ def play_through_node(events, parameters=None, context=None, speed=1.0, settle_s
         io.destroy_node()
         if own:
             rclpy.try_shutdown(context=context)
-    return preds, groups, values
+    return preds, groups, values, diags
 
 
-def _wait_for_match(*publishers, timeout_s=5.0):
+def _wait_for_match(node, *publishers, timeout_s=5.0):
+    """Wait until both ends see each other; a message sent earlier may be lost."""
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
-        if all(p.get_subscription_count() > 0 for p in publishers):
+        if all(p.get_subscription_count() > 0 and node.count_publishers(p.topic_name) > 0
+               for p in publishers):
+            time.sleep(0.1)      # the reader side finishes matching shortly after
             return
         time.sleep(0.01)
     raise RuntimeError("friction_node did not subscribe to the inputs in time")
+
+
+def _wait_until(node, condition, timeout_s=10.0):
+    deadline = time.monotonic() + timeout_s
+    while not condition(node.diagnostics_values(advance=False)[0]):
+        if time.monotonic() > deadline:
+            raise RuntimeError("friction_node did not take a message within "
+                               f"{timeout_s} s (lost in transport?)")
+        time.sleep(0.0005)
 
 
 def _prediction_dict(msg):

@@ -1,0 +1,131 @@
+"""
+The live friction_node, in-process under rclpy executors (no launch, no ros2 CLI).
+
+Inputs are paced so that the model keeps up; then the node must give exactly the replay's
+predictions (same runner, same schedule).
+"""
+
+import math
+
+import pytest
+from rclpy.parameter import Parameter
+
+from bb_friction_ros.bags import Event
+from bb_friction_ros.config import bundled_config, ConfigError
+from bb_friction_ros.node import FrictionNode, main, play_through_node
+from bb_friction_ros.replay import ReplaySettings, run_events
+from bb_friction_ros.runner import build_runner, InputAssembler
+from recordings import short_recording
+
+
+def replay_predictions(events):
+    runner = build_runner(bundled_config("ball_screw.yaml"), ReplaySettings().model_rate_hz)
+    asm = InputAssembler(ReplaySettings().nut_joint, ReplaySettings().max_axial_load_n)
+    return run_events(events, runner, asm), runner
+
+
+def test_live_node_equals_replay(ros_context):
+    """Same bag, same predictions: stamps match, values equal the core model's exactly."""
+    events = short_recording()
+    preds, groups, diag, diags = play_through_node(events, {"reliable_qos": True},
+                                                   context=ros_context, speed=0.5,
+                                                   lockstep=True)
+    assert diag["dropped_inputs"] == 0 and diag["skipped_inputs"] == 0
+    ref, _ = replay_predictions(events)
+    assert len(preds) == len(ref)
+    for live, core in zip(sorted(preds, key=lambda p: p["stamp_s"]), ref):
+        assert live["stamp_s"] == pytest.approx(core.stamp_s, abs=1e-9)
+        assert live["torque_total_nm"] == core.torque_total_nm
+        assert live["torque_b2b_nm"] == core.torque_b2b_nm
+        # parts come from the losses, the total from the nut's equilibrium: they agree to
+        # the solver's power balance (<= 4.4e-8 in the Sec. 3.4 run), hence 1e-6
+        assert live["torque_b2g_nm"] + live["torque_b2b_nm"] == pytest.approx(
+            live["torque_total_nm"], rel=1e-6)
+        assert live["n_groups"] == len(core.groups) and live["converged"]
+    # contact groups: ball ids in order, one force between consecutive balls, forces >= 0
+    assert groups, "contact groups are published at a rate and on change"
+    for msg in groups:
+        assert msg.n_balls == 37
+        for g in msg.groups:
+            assert len(g.b2b_forces_n) == len(g.ball_ids) - 1
+            assert all(f >= 0 for f in g.b2b_forces_n)
+    # the feedforward-relevant numbers are reported in /diagnostics
+    keys = {kv.key for d in diags for s in d.status for kv in s.values}
+    assert {"model_rate_hz", "lag_s", "nonconverged_steps", "rejected_total"} <= keys
+
+
+def test_bad_input_is_counted_never_fatal(ros_context):
+    """NaN, empty, wrong joint, absurd or NaN load, backwards stamps: counted, node lives."""
+    j = ("nut_joint",)
+    events = [
+        Event("nut_state", 0.00, j, (0.0,), (6.0,)),                      # no load yet
+        Event("axial_load", 0.00, value=1500.0),
+        Event("nut_state", 0.01, j, (0.06,), (6.0,)),
+        Event("nut_state", 0.02, (), (), ()),                             # empty
+        Event("nut_state", 0.03, ("elbow",), (0.1,), (6.0,)),             # wrong joint
+        Event("nut_state", 0.04, j, (math.nan,), (6.0,)),                 # NaN
+        Event("axial_load", 0.05, value=1e9),                             # absurd
+        Event("axial_load", 0.05, value=math.inf),                        # non-finite
+        Event("nut_state", 0.06, j, (0.36,), (6.0,)),
+        Event("nut_state", 0.005, j, (0.40,), (6.0,)),                    # bag loop
+        Event("nut_state", 0.015, j, (0.46,), (6.0,)),
+    ]
+    preds, _, diag, _ = play_through_node(events, {"reliable_qos": True},
+                                          context=ros_context, speed=0.2, lockstep=True)
+    assert diag["rejected_no_load_yet"] == 1
+    assert diag["rejected_empty"] == 1
+    assert diag["rejected_wrong_joint"] == 1
+    assert diag["rejected_non_finite"] == 2
+    assert diag["rejected_absurd_load"] == 1
+    assert diag["resets"] == 1
+    assert len(preds) == 4 and diag["published"] == 4
+    assert all(p["axial_load_n"] == 1500.0 for p in preds)   # bad loads never got through
+
+
+def test_flood_is_survived_and_accounted(ros_context):
+    """Inputs far faster than the model: every accepted input is answered or counted."""
+    j = ("nut_joint",)
+    events = [Event("axial_load", 0.0, value=1500.0)] + [
+        Event("nut_state", 1e-4 * k, j, (6.0 * 1e-4 * k,), (6.0,)) for k in range(3000)]
+    preds, _, diag, _ = play_through_node(events, {"queue_size": 32}, context=ros_context,
+                                          speed=1e9)
+    assert diag["published"] + diag["dropped_inputs"] == diag["received_nut_state"]
+    assert diag["published"] == len(preds) > 0
+    # after the flood the node still answers
+    more, _, _, _ = play_through_node(events[:3], {"reliable_qos": True}, context=ros_context,
+                                      speed=0.5, lockstep=True)
+    assert len(more) == 2
+
+
+def test_parameters_are_validated_at_runtime(ros_context, tmp_path):
+    node = FrictionNode(context=ros_context)
+    try:
+        ok = node.set_parameters([Parameter("nut_joint", value="screw_nut")])[0]
+        assert ok.successful
+        assert not node.set_parameters([Parameter("model_rate_hz", value=-5.0)])[0].successful
+        res = node.set_parameters([Parameter("queue_size", value=10)])[0]
+        assert not res.successful and "runtime" in res.reason
+        res = node.set_parameters([Parameter("config_file", value=str(tmp_path / "x.yaml"))])
+        assert not res[0].successful and "cannot read" in res[0].reason
+        assert node.get_parameter("config_file").value == ""
+    finally:
+        node.destroy_node()
+
+
+@pytest.mark.parametrize("name,value,needle", [
+    ("model_rate_hz", 0.0, "model_rate_hz"),
+    ("config_file", "/nonexistent/ball_screw.yaml", "cannot read"),
+])
+def test_bad_config_refuses_to_start(ros_context, name, value, needle):
+    with pytest.raises(ConfigError, match=needle):
+        FrictionNode(context=ros_context, parameter_overrides=[Parameter(name, value=value)])
+
+
+def test_bad_ball_screw_yaml_refuses_to_start_naming_the_key(tmp_path, capsys):
+    """friction_node --params-file with a bad model config exits 2 naming the key."""
+    bad = tmp_path / "screw.yaml"
+    bad.write_text("ball_screw:\n  geometry:\n    ball_radius_mm: -3\n")
+    params = tmp_path / "params.yaml"
+    params.write_text(f"friction_node:\n  ros__parameters:\n    config_file: '{bad}'\n")
+    assert main(["friction_node", "--ros-args", "--params-file", str(params)]) == 2
+    assert "ball_radius" in capsys.readouterr().err
