@@ -1,0 +1,358 @@
+"""
+Run a sweep on Dask distributed and stream its results to Parquet, resumably.
+
+Layout of the output directory ``DIR``::
+
+    DIR/manifest.json        the spec's canonical form and digest (a resume must match it)
+    DIR/runs.jsonl           one line per invocation that computed: samples, wall time, workers
+    DIR/parts/batch-N.parquet  one file per finished batch (Dask task), written atomically
+    DIR/results.parquet      all samples, one row each, sorted by sample (when complete)
+    DIR/summary.json, DIR/*.png   (report.py, plots.py; when complete)
+
+Execution: the samples are cut into batches of ``spec.batch_size`` (a task per sample would
+cost the scheduler more than the sample); each batch is one ``Client.submit`` of
+``run_batch``, which computes the batch's inputs from the seed (spec.py) and runs the model on
+each sample.  Results come back as the tasks finish (``as_completed``) and are written at once
+as a part file, so an interruption loses at most the batches in flight.  A rerun with the same
+spec and ``DIR`` submits only the batches that have no part file.  A batch whose task failed
+(a worker died, say) is not written: it stays pending and the next run retries it; a failing
+*sample* is a row with status ``failed`` and its reason (models.evaluate).
+
+Cluster: by default a ``LocalCluster`` of ``workers`` single-threaded worker processes (all
+cores) bound to 127.0.0.1; with ``scheduler`` an existing cluster (its workers must have
+bb_friction_ros installed).  Results do not depend on which: every sample is seeded by its
+own index.
+"""
+
+from contextlib import contextmanager
+import dataclasses
+import json
+import logging
+import os
+from pathlib import Path
+import sys
+import time
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from bb_friction_ros import __version__
+from bb_friction_ros.config import ConfigError
+from bb_friction_ros.sweep.models import INVALID, MODELS, OK, evaluate
+
+LOCALHOST = "127.0.0.1"
+PART_PREFIX = "batch-"
+RESULTS = "results.parquet"
+MANIFEST = "manifest.json"
+HISTORY = "runs.jsonl"
+# How long to wait for an existing scheduler to answer before giving up  [s].
+CONNECT_TIMEOUT_S = 30
+_ARROW_TYPES = {"float64": pa.float64(), "int64": pa.int64(), "bool": pa.bool_()}
+
+
+@dataclasses.dataclass
+class RunReport:
+    """What one invocation of ``run_sweep`` did."""
+
+    out_dir: Path
+    n_samples: int
+    n_resumed: int              # samples already saved when this run started
+    n_computed: int             # samples computed and saved by this run
+    complete: bool
+    wall_s: float               # this invocation, from start to its last result
+    compute_wall_s: float       # first task submitted to last result saved
+    workers: int
+    threads: int
+    scheduler: str
+    batches_submitted: tuple = ()
+    task_errors: tuple = ()     # (batch, error) of tasks that failed; retried on rerun
+    summary: dict = None
+
+    @property
+    def samples_per_s(self):
+        """Return the samples computed per second of compute wall time (None if none)."""
+        if not self.n_computed or not self.compute_wall_s:
+            return None
+        return self.n_computed / self.compute_wall_s
+
+
+def table_schema(spec):
+    """Return the Arrow schema of the results: ids, inputs (SI), outputs, status columns."""
+    model = MODELS[spec.model]
+    params = model.parameters(spec.base)
+    fields = [pa.field(n, pa.int64()) for n in ("sample", "grid_index", "draw")]
+    fields += [pa.field(n, pa.int64() if params[n].integer else pa.float64())
+               for n in spec.input_names]
+    fields += [pa.field(n, _ARROW_TYPES[model.output(n).dtype]) for n in spec.outputs]
+    fields += [pa.field("converged", pa.bool_()), pa.field("status", pa.string()),
+               pa.field("reason", pa.string())]
+    units = {n: params[n].unit for n in spec.input_names}
+    units.update({n: model.output(n).unit for n in spec.outputs})
+    meta = {"bb_friction_sweep": json.dumps({"name": spec.name, "model": spec.model,
+                                             "spec_digest": spec.digest(), "units": units})}
+    return pa.schema(fields, metadata=meta)
+
+
+def _python(value):
+    """Return a numpy scalar as the Python number the config machinery expects."""
+    return value.item() if isinstance(value, np.generic) else value
+
+
+def run_batch(spec, batch):
+    """Compute batch ``batch`` of ``spec`` (on a worker): {column: list or array}."""
+    start, stop = spec.batch_bounds(batch)
+    cols = spec.sample_inputs(start, stop)
+    model = MODELS[spec.model]
+    options = spec.option_map
+    n = stop - start
+    outs = {name: [None] * n for name in spec.outputs}
+    status, reason = [None] * n, [None] * n
+    for j in range(n):
+        params = {name: _python(cols[name][j]) for name in spec.input_names}
+        out, status[j], reason[j] = evaluate(model, spec.base, params, options,
+                                             spec.config_names)
+        if status[j] in (OK, INVALID):      # unconverged or failed: no numbers
+            for name in spec.outputs:
+                outs[name][j] = _python(out[name])
+    cols.update(outs)
+    cols["converged"] = [s in (OK, INVALID) for s in status]
+    cols["status"], cols["reason"] = status, reason
+    return cols
+
+
+def batch_table(spec, columns, schema=None):
+    """Return the Arrow table of one batch's columns."""
+    return pa.Table.from_pydict(columns, schema=schema or table_schema(spec))
+
+
+def _part_path(parts_dir, batch):
+    return parts_dir / f"{PART_PREFIX}{batch:06d}.parquet"
+
+
+def write_atomic(table, path):
+    """Write a Parquet file so that it is either whole or absent (rename is atomic)."""
+    tmp = path.with_name(path.name + ".tmp")
+    pq.write_table(table, tmp)
+    os.replace(tmp, path)
+
+
+def completed_batches(spec, parts_dir, log=None):
+    """
+    Return {batch: rows} of the part files that are whole and match the spec.
+
+    A part that cannot be read or has the wrong rows or schema (a crash while writing it, a
+    full disk) is deleted so that its batch runs again; leftover ``.tmp`` files too.
+    """
+    schema = table_schema(spec)
+    done = {}
+    for tmp in parts_dir.glob("*.tmp"):
+        tmp.unlink()
+    for path in sorted(parts_dir.glob(f"{PART_PREFIX}*.parquet")):
+        try:
+            batch = int(path.stem[len(PART_PREFIX):])
+            meta = pq.read_metadata(path)
+            start, stop = spec.batch_bounds(batch)
+            ok = (0 <= batch < spec.n_batches and meta.num_rows == stop - start
+                  and meta.schema.to_arrow_schema().equals(schema, check_metadata=False))
+        except (ValueError, OSError, pa.ArrowException):
+            ok = False
+        if ok:
+            done[batch] = meta.num_rows
+        else:
+            if log:
+                log(f"sweep: discarding unreadable or foreign part file {path.name}")
+            path.unlink()
+    return done
+
+
+def check_manifest(spec, out_dir):
+    """Write DIR/manifest.json, or check that an existing one is of the same spec."""
+    path = out_dir / MANIFEST
+    digest = spec.digest()
+    if path.exists():
+        try:
+            old = json.loads(path.read_text())
+        except (OSError, ValueError) as exc:
+            raise ConfigError(f"--out {out_dir}: unreadable {MANIFEST} ({exc})") from exc
+        if old.get("spec_digest") != digest:
+            raise ConfigError(
+                f"--out {out_dir}: holds the results of a different sweep ({old.get('name')}, "
+                f"spec digest {str(old.get('spec_digest'))[:12]}, this spec {digest[:12]}); "
+                "use another --out directory, or delete it to start again")
+        return
+    manifest = {"name": spec.name, "model": spec.model, "spec_digest": digest,
+                "n_samples": spec.n_samples, "n_batches": spec.n_batches,
+                "batch_size": spec.batch_size, "source": spec.source,
+                "package_version": __version__, "spec": spec.canonical()}
+    tmp = path.with_name(MANIFEST + ".tmp")
+    tmp.write_text(json.dumps(manifest, indent=2))
+    os.replace(tmp, path)
+
+
+@contextmanager
+def dask_client(workers=None, scheduler=None, processes=True):
+    """
+    Yield (Client, description) of a new LocalCluster or an existing scheduler; close after.
+
+    The local cluster binds the scheduler, workers and the HTTP endpoints to 127.0.0.1 on free
+    ports and uses single-threaded workers: the models hold the GIL, so threads would not
+    run in parallel.
+    """
+    from distributed import Client, LocalCluster
+    if scheduler is not None:
+        client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
+        try:
+            yield client, scheduler
+        finally:
+            client.close()
+        return
+    n = workers or os.cpu_count() or 1
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=processes,
+                           host=LOCALHOST, dashboard_address=f"{LOCALHOST}:0",
+                           silence_logs=logging.ERROR)
+    try:
+        client = Client(cluster)
+        try:
+            yield client, "local"
+        finally:
+            client.close()
+    finally:
+        cluster.close()
+
+
+def _progress(total, initial, enabled):
+    from tqdm import tqdm
+    return tqdm(total=total, initial=initial, unit="sample", file=sys.stderr,
+                disable=not enabled, dynamic_ncols=True, smoothing=0.1)
+
+
+def execute(client, spec, batches, parts_dir, bar, max_samples=None):
+    """
+    Run ``batches`` on ``client``, writing each part as it arrives.
+
+    Stops early (cancelling what is left) once ``max_samples`` samples are saved.  Returns
+    (samples saved, task errors).
+    """
+    from distributed import as_completed
+    schema = table_schema(spec)
+    key_prefix = f"bb-friction-sweep-{spec.digest()[:16]}-"
+    futures = {client.submit(run_batch, spec, b, key=f"{key_prefix}{b}", retries=1): b
+               for b in batches}
+    saved, errors = 0, []
+    pending = as_completed(list(futures))
+    try:
+        for fut in pending:
+            batch = futures[fut]
+            if fut.status != "finished":
+                errors.append((batch, repr(fut.exception())))
+                fut.release()
+                continue
+            table = batch_table(spec, fut.result(), schema)
+            fut.release()
+            write_atomic(table, _part_path(parts_dir, batch))
+            saved += table.num_rows
+            bar.update(table.num_rows)
+            if max_samples is not None and saved >= max_samples:
+                break
+    finally:
+        left = [f for f in futures if f.status == "pending"]
+        if left:
+            client.cancel(left)
+    return saved, errors
+
+
+def compact(spec, out_dir):
+    """Merge the part files into DIR/results.parquet (sorted by sample); return the table."""
+    schema = table_schema(spec)
+    parts = sorted((out_dir / "parts").glob(f"{PART_PREFIX}*.parquet"))
+    table = pa.concat_tables([pq.read_table(p, schema=schema) for p in parts])
+    table = table.sort_by("sample").replace_schema_metadata(schema.metadata)
+    write_atomic(table, out_dir / RESULTS)
+    return table
+
+
+def append_history(out_dir, rep):
+    """Append this invocation's computing figures to DIR/runs.jsonl (one line per run)."""
+    record = {"n_computed": rep.n_computed, "wall_s": rep.wall_s,
+              "compute_wall_s": rep.compute_wall_s, "workers": rep.workers,
+              "threads": rep.threads, "scheduler": rep.scheduler,
+              "task_errors": len(rep.task_errors)}
+    with open(out_dir / HISTORY, "a") as f:
+        f.write(json.dumps(record) + "\n")
+
+
+def read_history(out_dir):
+    """Return the records of DIR/runs.jsonl (a torn last line, from a crash, is skipped)."""
+    path = out_dir / HISTORY
+    records = []
+    if path.exists():
+        for line in path.read_text().splitlines():
+            try:
+                records.append(json.loads(line))
+            except ValueError:
+                continue
+    return records
+
+
+@contextmanager
+def _borrowed(client):
+    yield client, client.scheduler.address
+
+
+def run_sweep(spec, out_dir, workers=None, scheduler=None, processes=True, max_samples=None,
+              progress=True, plots=True, log=None, client=None):
+    """
+    Run (or resume) ``spec`` into ``out_dir``; return a RunReport.
+
+    ``max_samples``: stop after saving about this many new samples (whole batches; a test
+    and user hook for a bounded run, resumed by the next call).  When every batch is saved,
+    the results are compacted and summarised (summary.json) and, with ``plots``, plotted.
+    ``client``: an open distributed Client to use (left open) instead of a new cluster.
+    """
+    from bb_friction_ros.sweep import report
+    log = log or (lambda msg: print(msg, file=sys.stderr))
+    t0 = time.perf_counter()
+    out_dir = Path(out_dir)
+    parts_dir = out_dir / "parts"
+    parts_dir.mkdir(parents=True, exist_ok=True)
+    check_manifest(spec, out_dir)
+    done = completed_batches(spec, parts_dir, log)
+    n_resumed = sum(done.values())
+    todo = [b for b in range(spec.n_batches) if b not in done]
+    if n_resumed:
+        log(f"sweep: resuming, {n_resumed} of {spec.n_samples} samples already saved")
+    n_computed, errors, compute_s = 0, [], 0.0
+    n_workers = n_threads = 0
+    where = scheduler or "local"
+    if todo:
+        session = _borrowed(client) if client is not None \
+            else dask_client(workers, scheduler, processes)
+        with session as (client, where):
+            info = client.scheduler_info()["workers"]
+            n_workers, n_threads = len(info), sum(w["nthreads"] for w in info.values())
+            bar = _progress(spec.n_samples, n_resumed, progress)
+            t1 = time.perf_counter()
+            try:
+                n_computed, errors = execute(client, spec, todo, parts_dir, bar, max_samples)
+            finally:
+                compute_s = time.perf_counter() - t1
+                bar.close()
+    complete = len(completed_batches(spec, parts_dir)) == spec.n_batches
+    rep = RunReport(out_dir, spec.n_samples, n_resumed, n_computed, complete,
+                    time.perf_counter() - t0, compute_s, n_workers, n_threads, where,
+                    tuple(todo), tuple(errors))
+    if todo:
+        append_history(out_dir, rep)
+    for batch, err in errors:
+        log(f"sweep: batch {batch} failed as a task ({err}); rerun to retry it")
+    if complete:
+        table = compact(spec, out_dir)
+        rep.summary = report.write_summary(spec, table, read_history(out_dir), out_dir)
+        if plots:
+            from bb_friction_ros.sweep import plots as plotting
+            plotting.plot_all(spec, table, rep.summary, out_dir)
+    else:
+        log(f"sweep: {n_resumed + n_computed} of {spec.n_samples} samples saved in "
+            f"{out_dir}; run the same command again to resume")
+    return rep
