@@ -208,9 +208,11 @@ def dask_client(workers=None, scheduler=None, processes=True):
             client.close()
         return
     n = workers or os.cpu_count() or 1
+    # tcp also for in-process workers (processes=False would default to inproc): the tasks
+    # and results then go through the same serialisation as on a real cluster.
     cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=processes,
-                           host=LOCALHOST, dashboard_address=f"{LOCALHOST}:0",
-                           silence_logs=logging.ERROR)
+                           protocol="tcp://", host=LOCALHOST,
+                           dashboard_address=f"{LOCALHOST}:0", silence_logs=logging.ERROR)
     try:
         client = Client(cluster)
         try:

@@ -1,0 +1,1 @@
+"""Tests mirroring bb_friction_ros.sweep."""

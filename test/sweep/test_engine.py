@@ -1,0 +1,142 @@
+"""Dask execution, Parquet streaming and resume: deterministic, nothing lost, nothing redone."""
+
+import json
+import logging
+
+import pyarrow.parquet as pq
+import pytest
+
+from bb_friction_ros.config import ConfigError
+from bb_friction_ros.sweep import engine
+from bb_friction_ros.sweep.engine import run_sweep
+from bb_friction_ros.sweep.models import FAILED, OK
+
+QUIET = {'progress': False, 'plots': False, 'log': lambda msg: None}
+
+
+def results(out_dir):
+    return pq.read_table(out_dir / 'results.parquet')
+
+
+def parts(out_dir):
+    """Return {part file name: (inode, mtime_ns)}."""
+    return {p.name: (p.stat().st_ino, p.stat().st_mtime_ns)
+            for p in (out_dir / 'parts').glob('batch-*.parquet')}
+
+
+def test_same_seed_same_table_local_or_external_scheduler(tmp_path, linear_mc):
+    """The engine's own LocalCluster and an existing multi-process cluster agree exactly."""
+    from distributed import LocalCluster
+    spec = linear_mc()
+    local = run_sweep(spec, tmp_path / 'local', workers=2, processes=False, **QUIET)
+    assert local.complete and local.scheduler == 'local' and local.workers == 2
+    external = LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                            host='127.0.0.1', dashboard_address='127.0.0.1:0',
+                            silence_logs=logging.ERROR)
+    try:
+        remote = run_sweep(spec, tmp_path / 'remote', scheduler=external.scheduler_address,
+                           **QUIET)
+    finally:
+        external.close()
+    assert remote.complete and remote.scheduler.startswith('tcp://127.0.0.1:')
+    a, b = results(tmp_path / 'local'), results(tmp_path / 'remote')
+    assert a.num_rows == spec.n_samples
+    assert a.column('sample').to_pylist() == list(range(spec.n_samples))
+    assert a.equals(b, check_metadata=True)
+    assert set(a.column('status').to_pylist()) <= {OK, 'invalid', 'nonconverged'}
+
+
+def test_interrupted_sweep_resumes_without_recomputing(tmp_path, linear_mc, client):
+    spec = linear_mc()
+    whole = run_sweep(spec, tmp_path / 'whole', client=client, **QUIET)
+    out = tmp_path / 'resumed'
+    first = run_sweep(spec, out, client=client, max_samples=6, **QUIET)
+    assert not first.complete and not (out / 'results.parquet').exists()
+    saved = parts(out)
+    assert 6 <= first.n_computed < spec.n_samples
+    assert len(saved) * spec.batch_size == first.n_computed
+    second = run_sweep(spec, out, client=client, **QUIET)
+    assert second.complete
+    assert second.n_resumed == first.n_computed
+    assert second.n_computed == spec.n_samples - first.n_computed
+    redone = {f'batch-{b:06d}.parquet' for b in second.batches_submitted}
+    assert not redone & set(saved)
+    assert all(parts(out)[name] == stamp for name, stamp in saved.items())
+    assert results(out).equals(results(tmp_path / 'whole'), check_metadata=True)
+    summary = json.loads((out / 'summary.json').read_text())
+    assert summary['n_computed'] == spec.n_samples and summary['invocations'] == 2
+    third = run_sweep(spec, out, client=client, **QUIET)
+    assert third.complete and third.n_computed == 0 and not third.batches_submitted
+    assert whole.n_resumed == 0
+
+
+def test_failed_samples_are_rows_with_their_reason(tmp_path, linear_mc, client):
+    spec = linear_mc(samples=20, random={'samples': 20, 'seed': 5, 'variables': {
+        'theta_deg': {'dist': 'normal', 'mean': 2.0, 'std': 0.5},
+        'friction_coefficient': {'dist': 'uniform', 'low': -0.1, 'high': 0.2}}})
+    rep = run_sweep(spec, tmp_path, client=client, **QUIET)
+    table = results(tmp_path)
+    assert table.num_rows == spec.n_samples
+    status = table.column('status').to_pylist()
+    failed = [r for r, s in zip(table.to_pylist(), status) if s == FAILED]
+    assert failed and OK in status
+    for row in failed:
+        assert row['friction_coefficient'] <= 0 and row['f_b2b_n'] is None
+        assert 'linear_bearing.friction_coefficient' in row['reason']
+        assert row['converged'] is False
+    summary = rep.summary
+    assert summary['n_failed'] == len(failed) and summary['n_samples'] == spec.n_samples
+    assert summary['n_ok'] + summary['n_failed'] + summary['n_invalid'] \
+        + summary['n_nonconverged'] == spec.n_samples
+    assert sum(summary['failure_reasons'].values()) == len(failed)
+
+
+def test_summary_contents(tmp_path, linear_mc, client):
+    rep = run_sweep(linear_mc(), tmp_path, client=client, **QUIET)
+    s = json.loads((tmp_path / 'summary.json').read_text())
+    for key in ('n_samples', 'n_failed', 'n_nonconverged', 'wall_s', 'samples_per_s',
+                'workers', 'outputs', 'sensitivity'):
+        assert key in s
+    f = s['outputs']['f_b2b_n']
+    assert f['unit'] == 'N' and f['min'] <= f['q05'] <= f['q50'] <= f['q95'] <= f['max']
+    assert s['workers'] == 2 and s['samples_per_s'] > 0
+    assert s['sensitivity']['inputs'] == ['theta_rad', 'rho']
+    assert rep.summary == s
+
+
+def test_other_spec_in_the_same_directory_is_refused(tmp_path, linear_mc, client):
+    run_sweep(linear_mc(samples=5), tmp_path, client=client, **QUIET)
+    with pytest.raises(ConfigError, match='--out .*different sweep'):
+        run_sweep(linear_mc(samples=6), tmp_path, client=client, **QUIET)
+
+
+def test_broken_part_file_is_computed_again(tmp_path, linear_mc, client):
+    spec = linear_mc(samples=15)
+    run_sweep(spec, tmp_path, client=client, **QUIET)
+    before = results(tmp_path)
+    victim = tmp_path / 'parts' / 'batch-000001.parquet'
+    victim.write_bytes(victim.read_bytes()[:100])          # a crash mid-write, say
+    (tmp_path / 'parts' / 'batch-000002.parquet.tmp').write_bytes(b'torn')
+    again = run_sweep(spec, tmp_path, client=client, **QUIET)
+    assert again.batches_submitted == (1,)
+    assert not list((tmp_path / 'parts').glob('*.tmp'))
+    assert results(tmp_path).equals(before)
+
+
+def test_failed_task_is_not_saved_and_retried_next_run(tmp_path, linear_mc, client,
+                                                       monkeypatch):
+    spec = linear_mc(samples=15)
+    original = engine.run_batch
+
+    def flaky(spec_, batch):
+        if batch == 1:
+            raise OSError('worker lost its disk')
+        return original(spec_, batch)
+    monkeypatch.setattr(engine, 'run_batch', flaky)
+    first = run_sweep(spec, tmp_path, client=client, **QUIET)
+    assert not first.complete and [b for b, _ in first.task_errors] == [1]
+    assert 'worker lost its disk' in first.task_errors[0][1]
+    assert 'batch-000001.parquet' not in parts(tmp_path)
+    monkeypatch.setattr(engine, 'run_batch', original)
+    second = run_sweep(spec, tmp_path, client=client, **QUIET)
+    assert second.complete and second.batches_submitted == (1,)
