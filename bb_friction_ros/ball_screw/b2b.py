@@ -9,6 +9,10 @@ contact point is computed with exact 3-D vectors (Eq. 57 is its component form),
 into the contact plane; the friction force is -mu F slip/|slip| on the rear ball (Eq. 58) and
 the loss mu F |slip| (the analogue of Eq. 7).  With equal orbit rates the two balls move by
 the same screw motion, an isometry, so the normal relative velocity is exactly zero.
+
+The projected slip is linear in the two balls' states, st = B_r x_r + B_f x_f, and the unit
+force terms are affine in its direction e = st/|st|: g = c + K e (``linear_terms``).  The
+compiled solver uses this form for the exact derivative of the friction direction.
 """
 
 import numpy as np
@@ -32,6 +36,45 @@ class B2BContactModel:
                                                             g.pitch_radius_m)
         self.frames = {s: geo.b2b_chord_frames(s * self.separation, g.pitch_radius_m,
                                                g.lead_m) for s in (1.0, -1.0)}
+        self._linear = {s: self._build_linear(s) for s in (1.0, -1.0)}
+
+    def _build_linear(self, sign):
+        """Matrices of ``linear_terms`` for one direction of motion."""
+        m_r, m_f, rot = self.frames[sign]
+        r_b, ell = self.ball.r_b, self.ball.ell
+        eye = np.eye(3)
+        a_r = np.zeros((3, 6))
+        a_f = np.zeros((3, 6))
+        a_r[1, 2] = ell
+        a_f[:, 2] = -ell * rot[:, 1]
+        for k in range(3):
+            a_r[:, 3 + k] = r_b * np.cross(eye[k], m_r)
+            a_f[:, 3 + k] = r_b * rot @ np.cross(eye[k], m_f)
+        proj = eye - np.outer(m_r, m_r)
+
+        def skew(v):
+            return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+        c_r = np.concatenate([-m_r, np.zeros(3)])
+        c_f = np.concatenate([m_f, np.zeros(3)])
+        k_r = -self.mu * np.vstack([eye, skew(m_r)])
+        k_f = self.mu * np.vstack([eye, -skew(m_f)]) @ rot.T
+        terms = (proj @ a_r, proj @ a_f, c_r, c_f, k_r, k_f)
+        return tuple(np.ascontiguousarray(v) for v in terms)
+
+    def linear_terms(self, sign):
+        """
+        Return (B_r, B_f, c_r, c_f, K_r, K_f) for the direction of motion ``sign``.
+
+        Projected slip st = B_r x_r + B_f x_f (3 x 6 each, rows in the rear CS_3); unit force
+        terms g_rear = c_r + K_r e and g_front = c_f + K_f e (6, and 6 x 3) with e = st/|st|.
+        """
+        return self._linear[1.0 if sign > 0 else -1.0]
+
+    def speed(self, x_rear, x_front, sign):
+        """Slip speed |slip| per |omega_N| of each pair (K,), from the linear form."""
+        b_r, b_f = self.linear_terms(sign)[:2]
+        return np.linalg.norm(x_rear @ b_r.T + x_front @ b_f.T, axis=1)
 
     def slip(self, x_rear, x_front, sign):
         """Eq. (57): rear-on-front velocity at each B2B point, as K rows in the rear CS_3."""

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import solve_banded
 
+from bb_friction_ros.ball_screw import kernel
 from bb_friction_ros.ball_screw.single_ball import LENGTH_SCALE_M, N_STATE
 
 
@@ -62,6 +63,15 @@ class EquilibriumSolver:
         self.settings = settings
         self.disp_limit = settings.max_step_displacement_m / LENGTH_SCALE_M
         self.extra_oversize_m = 0.0     # > 0 only during a cold start's continuation
+        # Compiled Newton kernel (exact B2B Jacobian); the numpy path below without numba.
+        self.use_kernel = kernel.HAVE_NUMBA
+        b = ball_model
+        self._k_load = np.ascontiguousarray(b.k_load, dtype=float)
+        self._k_axis = np.ascontiguousarray(b.k_axis, dtype=float)
+        self._on_nut = np.ascontiguousarray(b.on_nut, dtype=float)
+        self._coef = tuple(m.cell_coefficients for m in b.maps)
+        m0 = b.maps[0]
+        self._grid = np.array([m0.n_polar, m0.n_azimuth, m0.dt, m0.dh], dtype=float)
 
     def _approach_units(self, load_n):
         """Hertz approach of a screw contact under ``load_n``, in LENGTH_SCALE_M units."""
@@ -189,15 +199,42 @@ class EquilibriumSolver:
         return self.solve(x, u, centres, sign, load_w, scale, none, none,
                           np.zeros(0, dtype=bool))
 
-    def solve_active(self, x, u, f_hat, centres, sign, load_w, scale, rear, front):
+    def _solve_active_kernel(self, x, u, f_hat, centres, sign, load_w, scale, rear, front,
+                             max_iterations):
+        """``solve_active`` through the compiled kernel (``kernel.solve_active``)."""
+        st = self.settings
+        b = self.ball
+        cst = np.array([LENGTH_SCALE_M, b.r_b, b.cos_a, b.sin_a, b.ell, b.mu,
+                        b.free_distance - 0.5 * self.extra_oversize_m, b.r_gear])
+        disp_limit = max(self.disp_limit, self._approach_units(scale))
+        x, u, f_hat, ok, it, norm, terms, per_contact, speed = kernel.solve_active(
+            np.ascontiguousarray(x, dtype=float), float(u),
+            np.ascontiguousarray(f_hat, dtype=float),
+            np.ascontiguousarray(centres, dtype=float), float(sign), cst, self._k_load,
+            self._k_axis, self._on_nut, self._coef[0], self._coef[1], self._grid,
+            float(scale), float(load_w), np.ascontiguousarray(rear, dtype=np.int64),
+            np.ascontiguousarray(front, dtype=np.int64), *self.b2b.linear_terms(sign),
+            float(st.tolerance), int(max_iterations), float(st.max_step_rate),
+            float(disp_limit))
+        t = {"force": terms[:, 0:3], "moment": terms[:, 3:6], "loss": terms[:, 6],
+             "nut_torque": terms[:, 7], "axial": terms[:, 8], "load": per_contact[..., 0],
+             "contact_loss": per_contact[..., 1], "angle": per_contact[..., 2]}
+        return x, u, f_hat, bool(ok), int(it), float(norm), t, speed
+
+    def solve_active(self, x, u, f_hat, centres, sign, load_w, scale, rear, front,
+                     max_iterations=None):
         """Newton iterations for one active set; returns (x, u, f_hat, ok, it, res, t, sp)."""
         st = self.settings
+        max_it = st.max_iterations if max_iterations is None else max_iterations
+        if self.use_kernel:
+            return self._solve_active_kernel(x, u, f_hat, centres, sign, load_w, scale, rear,
+                                             front, max_it)
         n = x.shape[0]
         t, res, axial, cons, gr, gf, sp = self._residual(x, u, f_hat, centres, sign, load_w,
                                                          scale, rear, front, True)
         norm = max(np.abs(res).max(), abs(axial), np.abs(cons).max() if cons.size else 0.0)
         it = 0
-        while norm > st.tolerance and it < st.max_iterations:
+        while norm > st.tolerance and it < max_it:
             it += 1
             dx, du, df = self._newton_step(t, res, axial, cons, gr, gf, scale, rear, front, n)
             # Trust region: near two-point contact the spin about the loaded diagonal is
@@ -261,6 +298,6 @@ class EquilibriumSolver:
             ok = False
         speed = np.zeros(pair_rear.size)
         if pair_rear.size:
-            speed = self.b2b.unit_terms(x[pair_rear], x[pair_front], sign)[2]
+            speed = self.b2b.speed(x[pair_rear], x[pair_front], sign)
         return Solution(x=x, u=u, forces=f_all * scale, active=active, converged=ok,
                         iterations=total_it, residual=norm, terms=t, b2b_speed=speed)

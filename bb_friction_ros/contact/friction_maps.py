@@ -284,6 +284,13 @@ class FrictionMapSphere:
         c = np.einsum("ia,ocdab,jb->cdjoi", hermite, g, hermite)
         return np.ascontiguousarray(c.reshape(n_t * n_h, 4, 16))
 
+    @property
+    def cell_coefficients(self):
+        """Per-cell power-basis coefficients (n_polar * n_azimuth, 4, 16); read only."""
+        c = self._coef.view()
+        c.flags.writeable = False
+        return c
+
     def evaluate_angles(self, t, h):
         """Normalised (f_X, f_Y, m, p) and their t- and h-derivatives at angles (t, h)."""
         t = np.clip(np.asarray(t, dtype=float), 0.0, math.pi)

@@ -1,0 +1,602 @@
+"""
+Compiled Newton kernel of the ball equilibrium for one B2B active set (numba).
+
+Why compiled (measured, issue: whole-screw step <= 1 ms, 0.5 ms for 20x real-time replay):
+the numpy evaluation of the 37 x 4 contacts costs 0.67 ms without and 1.1 ms with the
+Jacobian, about 150 small numpy calls, almost all Python overhead.  A step needs at least two
+evaluations, so numpy cannot reach the goal; the same arithmetic as scalar loops runs in tens
+of microseconds.  Without numba the module still imports (the functions run as plain Python)
+and ``HAVE_NUMBA`` is False: the solver then uses its numpy path.
+
+The kernel is the numpy model of ``single_ball`` / ``b2b`` written per contact, plus two
+changes of the solver, not of the model:
+
+- The Jacobian includes the exact derivatives of the B2B friction direction.  The slip at a
+  B2B contact is linear in the two balls' states, st = B_r x_r + B_f x_f
+  (``B2BContactModel.linear_terms``), so d(st/|st|) = (I - e e^T) B / |st|.  This couples
+  touching balls directly and gives quadratic convergence along long chains.
+- The Newton system is block tridiagonal along each chain.  Block k holds ball k's six states
+  and the force of the contact behind it; its rows are the ball's equations and the equal
+  orbit rate across that contact.  It is bordered by the nut displacement u.  A block Thomas
+  sweep per chain, with partial pivoting inside the 7 x 7 blocks, is followed by a Schur
+  complement for u.  Cost per iteration is linear in N.
+
+Derivatives with respect to u: u enters only through the nut arcs' z_3 shift, so each
+derivative in u is -g cos(alpha) times the derivative in zeta.
+"""
+
+import math
+
+import numpy as np
+
+try:
+    import numba
+    HAVE_NUMBA = True
+
+    def _jit(fn):
+        # fastmath off: the same IEEE arithmetic as the numpy path.
+        return numba.njit(cache=True, error_model="numpy")(fn)
+except ImportError:        # pragma: no cover - numba is an exec_depend
+    HAVE_NUMBA = False
+
+    def _jit(fn):
+        return fn
+
+_TINY = 1e-300
+_TWO_PI = 2.0 * math.pi
+_ANGLE_SIGN = (-1.0, 1.0, 1.0, -1.0)
+_N_TRIAL = 12     # step halvings of the line search
+
+
+@_jit
+def _map_eval(coef, t, h, n_pol, n_az, dtm, dhm, val, dvt, dvh):
+    """Bicubic patch of FrictionMapSphere at (t, h): values and t-, h-derivatives."""
+    if t < 0.0:
+        t = 0.0
+    elif t > math.pi:
+        t = math.pi
+    xx = t / dtm
+    i0 = int(xx)
+    if i0 > n_pol - 1:
+        i0 = n_pol - 1
+    sx = xx - i0
+    yy = (h % _TWO_PI) / dhm
+    j0 = int(yy)
+    if j0 > n_az - 1:
+        j0 = n_az - 1
+    sy = yy - j0
+    cell = i0 * n_az + j0
+    for o in range(4):
+        qv0 = qv1 = qv2 = qv3 = 0.0
+        qd0 = qd1 = qd2 = qd3 = 0.0
+        for i in range(4):
+            col = 4 * o + i
+            c0 = coef[cell, 0, col]
+            c1 = coef[cell, 1, col]
+            c2 = coef[cell, 2, col]
+            c3 = coef[cell, 3, col]
+            qv = ((c3 * sy + c2) * sy + c1) * sy + c0
+            qd = (3.0 * c3 * sy + 2.0 * c2) * sy + c1
+            if i == 0:
+                qv0, qd0 = qv, qd
+            elif i == 1:
+                qv1, qd1 = qv, qd
+            elif i == 2:
+                qv2, qd2 = qv, qd
+            else:
+                qv3, qd3 = qv, qd
+        val[o] = ((qv3 * sx + qv2) * sx + qv1) * sx + qv0
+        dvt[o] = ((3.0 * qv3 * sx + 2.0 * qv2) * sx + qv1) / dtm
+        dvh[o] = (((qd3 * sx + qd2) * sx + qd1) * sx + qd0) / dhm
+
+
+@_jit
+def evaluate_balls(x, u, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid,
+                   scale, want_jac, res, jac, dax, terms, per_contact):
+    """
+    Ball-groove residuals of all balls (``single_ball.BallGrooveModel.evaluate``).
+
+    cst = (lambda, R_B, cos a, sin a, l, mu, free distance, r_gear); grid = (n_polar,
+    n_azimuth, dt, dh).  Writes res (N, 6) = [force, moment / R_B] / scale, jac (N, 6, 7),
+    dax (N, 7) = d(axial) / scale; terms (N, 10) = force (3), moment (3), loss, nut torque,
+    axial force, 0; per_contact (N, 4, 3) = load, loss, contact angle.  Returns the summed
+    axial force [N].
+    """
+    lam, r_b, ca, sa, ell, mu, free, r_gear = (cst[0], cst[1], cst[2], cst[3], cst[4],
+                                               cst[5], cst[6], cst[7])
+    n_pol, n_az = int(grid[0]), int(grid[1])
+    dtm, dhm = grid[2], grid[3]
+    val = np.empty(4)
+    dvt = np.empty(4)
+    dvh = np.empty(4)
+    d6 = np.empty(6)
+    inv_s = 1.0 / scale
+    inv_rs = 1.0 / (r_b * scale)
+    axial_sum = 0.0
+    nb = x.shape[0]
+    for i in range(nb):
+        x0, x1, wb, ox, oy, oz = x[i, 0], x[i, 1], x[i, 2], x[i, 3], x[i, 4], x[i, 5]
+        for r in range(10):
+            terms[i, r] = 0.0
+        for r in range(6):
+            res[i, r] = 0.0
+        if want_jac:
+            for r in range(6):
+                for j in range(7):
+                    jac[i, r, j] = 0.0
+            for j in range(7):
+                dax[i, j] = 0.0
+        for k in range(4):
+            g = on_nut[k]
+            gs = g * sign
+            kl = k_load[k]
+            ka = k_axis[k]
+            dxv = lam * x0 - centres[i, k, 0]
+            dzv = lam * x1 - centres[i, k, 1] - g * (lam * ca * u)
+            dist = math.hypot(dxv, dzv)
+            nx = dxv / dist
+            nz = dzv / dist
+            delta = dist - free
+            pos = delta > 0.0
+            dpos = delta if pos else 0.0
+            sq = math.sqrt(dpos)
+            q = kl * dpos * sq
+            a = ka * np.cbrt(q)
+            a_s = max(a, ka * 1e-9)
+            vx = r_b * (oy - gs * sa)
+            vy = wb * ell + r_b * (oz * nx - ox * nz) - gs * (ell + r_b * ca * nx)
+            w = ox * nx + oz * nz - gs * ca * nz
+            rx = vx / a_s
+            ry = vy / a_s
+            rho = max(math.hypot(rx, ry), _TINY)
+            s = math.hypot(rho, w)
+            t = math.atan2(rho, w)
+            h = math.atan2(ry, rx)
+            if k < 2:
+                _map_eval(coef_s, t, h, n_pol, n_az, dtm, dhm, val, dvt, dvh)
+            else:
+                _map_eval(coef_n, t, h, n_pol, n_az, dtm, dhm, val, dvt, dvh)
+            fx, fy, mm, pp = val[0], val[1], val[2], val[3]
+            p_ = mu * q
+            am = a * mm
+            f0 = -q * nx + p_ * fx * nz
+            f1 = p_ * fy
+            f2 = -q * nz - p_ * fx * nx
+            m0 = p_ * (-r_b * fy * nz + am * nx)
+            m1 = p_ * r_b * fx
+            m2 = p_ * (r_b * fy * nx + am * nz)
+            loss_c = p_ * a * s * pp
+            torque_c = g * (f0 * (r_b * sa * nz) + f1 * (ell - r_gear * sa + r_b * ca * nx)
+                            + f2 * (-r_gear * ca - r_b * sa * nx) + p_ * am * nz * ca)
+            axial_c = g * (f1 * sa + f2 * ca)
+            terms[i, 0] += f0
+            terms[i, 1] += f1
+            terms[i, 2] += f2
+            terms[i, 3] += m0
+            terms[i, 4] += m1
+            terms[i, 5] += m2
+            terms[i, 6] += loss_c
+            terms[i, 7] += torque_c
+            terms[i, 8] += axial_c
+            per_contact[i, k, 0] = q
+            per_contact[i, k, 1] = loss_c
+            per_contact[i, k, 2] = math.atan2(_ANGLE_SIGN[k] * nz, abs(nx))
+            axial_sum += axial_c
+            if not want_jac:
+                continue
+            a_over_3q = a / (3.0 * q) if (pos and q > 0.0) else 0.0
+            inv_dist = 1.0 / dist
+            for j in range(6):
+                ddx = lam if j == 0 else 0.0
+                ddz = lam if j == 1 else 0.0
+                dn_l = nx * ddx + nz * ddz
+                dnx = (ddx - nx * dn_l) * inv_dist
+                dnz = (ddz - nz * dn_l) * inv_dist
+                dq = 1.5 * kl * sq * dn_l
+                da = a_over_3q * dq
+                dvx = r_b if j == 4 else 0.0
+                dvy = r_b * (oz - gs * ca) * dnx - r_b * ox * dnz
+                dw = ox * dnx + (oz - gs * ca) * dnz
+                if j == 2:
+                    dvy += ell
+                elif j == 3:
+                    dvy -= r_b * nz
+                    dw += nx
+                elif j == 5:
+                    dvy += r_b * nx
+                    dw += nz
+                drx = (dvx - rx * da) / a_s
+                dry = (dvy - ry * da) / a_s
+                dt = (w * (rx * drx + ry * dry) / rho - rho * dw) / (s * s)
+                dh = (rx * dry - ry * drx) / (rho * rho)
+                dfx = dvt[0] * dt + dvh[0] * dh
+                dfy = dvt[1] * dt + dvh[1] * dh
+                dmm = dvt[2] * dt + dvh[2] * dh
+                dp_ = mu * dq
+                dam = mm * da + a * dmm
+                d_fx = (-dq * nx - q * dnx + dp_ * fx * nz + p_ * nz * dfx + p_ * fx * dnz)
+                d_fy = dp_ * fy + p_ * dfy
+                d_fz = (-dq * nz - q * dnz - dp_ * fx * nx - p_ * nx * dfx - p_ * fx * dnx)
+                d_mx = (dp_ * (-r_b * fy * nz + am * nx)
+                        + p_ * (-r_b * (dfy * nz + fy * dnz) + dam * nx + am * dnx))
+                d_my = r_b * (dp_ * fx + p_ * dfx)
+                d_mz = (dp_ * (r_b * fy * nx + am * nz)
+                        + p_ * (r_b * (dfy * nx + fy * dnx) + dam * nz + am * dnz))
+                d6[0] = d_fx * inv_s
+                d6[1] = d_fy * inv_s
+                d6[2] = d_fz * inv_s
+                d6[3] = d_mx * inv_rs
+                d6[4] = d_my * inv_rs
+                d6[5] = d_mz * inv_rs
+                d_ax = g * (d_fy * sa + d_fz * ca) * inv_s
+                for r in range(6):
+                    jac[i, r, j] += d6[r]
+                dax[i, j] += d_ax
+                if j == 1 and g != 0.0:
+                    cu = -g * ca
+                    for r in range(6):
+                        jac[i, r, 6] += cu * d6[r]
+                    dax[i, 6] += cu * d_ax
+        for r in range(3):
+            res[i, r] = terms[i, r] * inv_s
+            res[i, 3 + r] = terms[i, 3 + r] * inv_rs
+    return axial_sum
+
+
+@_jit
+def b2b_terms(x, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, want_jac, g_r, g_f, speed,
+              dgr_r, dgr_f, dgf_r, dgf_f):
+    """
+    Unit-force B2B terms g_rear, g_front (K, 6), slip speed (K,) and their state derivatives.
+
+    dg{r,f}_{r,f}[c] (6, 6): derivative of g_rear / g_front with respect to the rear / front
+    ball's six states.
+    """
+    st = np.empty(3)
+    un = np.empty(3)
+    pn = np.empty((3, 3))
+    dr = np.empty((3, 6))
+    df = np.empty((3, 6))
+    for c in range(rear.shape[0]):
+        r = rear[c]
+        f = front[c]
+        for a in range(3):
+            acc = 0.0
+            for j in range(6):
+                acc += b_r[a, j] * x[r, j] + b_f[a, j] * x[f, j]
+            st[a] = acc
+        sp = math.sqrt(st[0] * st[0] + st[1] * st[1] + st[2] * st[2])
+        speed[c] = sp
+        inv = 1.0 / max(sp, _TINY)
+        for a in range(3):
+            un[a] = st[a] * inv
+        for r6 in range(6):
+            gr = c_r[r6]
+            gf = c_f[r6]
+            for a in range(3):
+                gr += k_r[r6, a] * un[a]
+                gf += k_f[r6, a] * un[a]
+            g_r[c, r6] = gr
+            g_f[c, r6] = gf
+        if not want_jac:
+            continue
+        for a in range(3):
+            for b in range(3):
+                pn[a, b] = ((1.0 if a == b else 0.0) - un[a] * un[b]) * inv
+        for a in range(3):
+            for j in range(6):
+                acc_r = 0.0
+                acc_f = 0.0
+                for b in range(3):
+                    acc_r += pn[a, b] * b_r[b, j]
+                    acc_f += pn[a, b] * b_f[b, j]
+                dr[a, j] = acc_r
+                df[a, j] = acc_f
+        for r6 in range(6):
+            for j in range(6):
+                s1 = s2 = s3 = s4 = 0.0
+                for a in range(3):
+                    s1 += k_r[r6, a] * dr[a, j]
+                    s2 += k_r[r6, a] * df[a, j]
+                    s3 += k_f[r6, a] * dr[a, j]
+                    s4 += k_f[r6, a] * df[a, j]
+                dgr_r[c, r6, j] = s1
+                dgr_f[c, r6, j] = s2
+                dgf_r[c, r6, j] = s3
+                dgf_f[c, r6, j] = s4
+
+
+@_jit
+def _gauss(d, w):
+    """Solve d @ X = w in place (w <- X); partial pivoting; singular -> diagonal shift."""
+    n = d.shape[0]
+    m = w.shape[1]
+    d0 = d.copy()
+    w0 = w.copy()
+    for attempt in range(2):
+        singular = False
+        for col in range(n):
+            piv = col
+            big = abs(d[col, col])
+            for r in range(col + 1, n):
+                if abs(d[r, col]) > big:
+                    big = abs(d[r, col])
+                    piv = r
+            if big == 0.0 or not math.isfinite(big):
+                singular = True
+                break
+            if piv != col:
+                for j in range(n):
+                    tmp = d[col, j]
+                    d[col, j] = d[piv, j]
+                    d[piv, j] = tmp
+                for j in range(m):
+                    tmp = w[col, j]
+                    w[col, j] = w[piv, j]
+                    w[piv, j] = tmp
+            inv = 1.0 / d[col, col]
+            for r in range(col + 1, n):
+                fac = d[r, col] * inv
+                if fac != 0.0:
+                    for j in range(col + 1, n):
+                        d[r, j] -= fac * d[col, j]
+                    for j in range(m):
+                        w[r, j] -= fac * w[col, j]
+        if not singular:
+            for col in range(n - 1, -1, -1):
+                inv = 1.0 / d[col, col]
+                for j in range(m):
+                    acc = w[col, j]
+                    for k in range(col + 1, n):
+                        acc -= d[col, k] * w[k, j]
+                    w[col, j] = acc * inv
+            return True
+        # Levenberg-Marquardt shift, as the numpy path does for a singular block.
+        shift = math.sqrt(2.220446049250313e-16) * max(np.abs(d0).max(), 1e-300)
+        for r in range(n):
+            for j in range(n):
+                d[r, j] = d0[r, j]
+            d[r, r] += shift
+            for j in range(m):
+                w[r, j] = w0[r, j]
+    return False
+
+
+@_jit
+def chains(n, rear, front):
+    """Order balls chain by chain, rear first: (rear_of, front_of, seq, starts, ok)."""
+    rear_of = np.full(n, -1, dtype=np.int64)
+    front_of = np.full(n, -1, dtype=np.int64)
+    for c in range(rear.shape[0]):
+        rear_of[rear[c]] = c
+        front_of[front[c]] = c
+    seq = np.empty(n, dtype=np.int64)
+    starts = np.empty(n + 1, dtype=np.int64)
+    nc = 0
+    pos = 0
+    for b in range(n):
+        if front_of[b] != -1:
+            continue
+        starts[nc] = pos
+        nc += 1
+        cur = b
+        while pos < n:
+            seq[pos] = cur
+            pos += 1
+            c = rear_of[cur]
+            if c < 0:
+                break
+            cur = front[c]
+    starts[nc] = pos
+    return rear_of, front_of, seq, starts[:nc + 1], pos == n
+
+
+@_jit
+def newton_direction(seq, starts, rear_of, front_of, jac, dax, res, axial, cons, fhat, g_r,
+                     g_f, dgr_r, dgr_f, dgf_r, dgf_f, xs, ys, dx, df):
+    """
+    Newton step (dx, du, df) of the bordered block-tridiagonal system (module docstring).
+
+    xs (N, 7, 9), ys (N, 7, 2): work arrays.  Returns du; writes dx (N, 6), df (K,).
+    """
+    d = np.empty((7, 7))
+    w = np.empty((7, 9))
+    lm = np.empty((7, 7))
+    acc_y = 0.0
+    acc_w = 0.0
+    c_u = 0.0
+    for b in range(jac.shape[0]):
+        c_u += dax[b, 6]
+    for ch in range(starts.shape[0] - 1):
+        k0, k1 = starts[ch], starts[ch + 1]
+        for k in range(k0, k1):
+            b = seq[k]
+            c = rear_of[b]
+            cp = front_of[b]
+            for r in range(7):
+                for j in range(7):
+                    d[r, j] = 0.0
+                for j in range(9):
+                    w[r, j] = 0.0
+            for r in range(6):
+                for j in range(6):
+                    d[r, j] = jac[b, r, j]
+                w[r, 7] = res[b, r]
+                w[r, 8] = jac[b, r, 6]
+            if c >= 0:
+                fc = fhat[c]
+                for r in range(6):
+                    for j in range(6):
+                        d[r, j] += fc * dgr_r[c, r, j]
+                        w[r, j] = fc * dgr_f[c, r, j]
+                    d[r, 6] = g_r[c, r]
+                d[6, 2] = 1.0
+                w[6, 2] = -1.0
+                w[6, 7] = cons[c]
+            else:
+                d[6, 6] = 1.0
+            if cp >= 0:
+                fp = fhat[cp]
+                for r in range(6):
+                    for j in range(6):
+                        d[r, j] += fp * dgf_f[cp, r, j]
+            if k > k0:
+                # L block: this ball's rows on the previous block (its x and the force cp).
+                for r in range(7):
+                    for j in range(7):
+                        lm[r, j] = 0.0
+                fp = fhat[cp]
+                for r in range(6):
+                    for j in range(6):
+                        lm[r, j] = fp * dgf_r[cp, r, j]
+                    lm[r, 6] = g_f[cp, r]
+                for r in range(6):
+                    for j in range(7):
+                        acc = 0.0
+                        for m in range(7):
+                            acc += lm[r, m] * xs[k - 1, m, j]
+                        d[r, j] -= acc
+                    for j in range(7, 9):
+                        acc = 0.0
+                        for m in range(7):
+                            acc += lm[r, m] * xs[k - 1, m, j]
+                        w[r, j] -= acc
+            _gauss(d, w)
+            for r in range(7):
+                for j in range(9):
+                    xs[k, r, j] = w[r, j]
+        for k in range(k1 - 1, k0 - 1, -1):
+            for r in range(7):
+                yv = xs[k, r, 7]
+                wv = xs[k, r, 8]
+                if k < k1 - 1:
+                    for m in range(7):
+                        yv -= xs[k, r, m] * ys[k + 1, m, 0]
+                        wv -= xs[k, r, m] * ys[k + 1, m, 1]
+                ys[k, r, 0] = yv
+                ys[k, r, 1] = wv
+            b = seq[k]
+            for r in range(6):
+                acc_y += dax[b, r] * ys[k, r, 0]
+                acc_w += dax[b, r] * ys[k, r, 1]
+    du = (axial - acc_y) / (c_u - acc_w)
+    for k in range(seq.shape[0]):
+        b = seq[k]
+        for r in range(6):
+            dx[b, r] = -(ys[k, r, 0] - ys[k, r, 1] * du)
+        c = rear_of[b]
+        if c >= 0:
+            df[c] = -(ys[k, 6, 0] - ys[k, 6, 1] * du)
+    return -du
+
+
+@_jit
+def _residual(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid,
+              scale, load_w, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, res, jac, dax, terms,
+              per_contact, g_r, g_f, speed, dgr_r, dgr_f, dgf_r, dgf_f, cons):
+    """Full residual (balls + B2B + axial + equal rates) and Jacobian; returns (axial, norm)."""
+    ax = evaluate_balls(x, u, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
+                        grid, scale, True, res, jac, dax, terms, per_contact)
+    b2b_terms(x, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, True, g_r, g_f, speed, dgr_r,
+              dgr_f, dgf_r, dgf_f)
+    for c in range(rear.shape[0]):
+        r = rear[c]
+        f = front[c]
+        for j in range(6):
+            res[r, j] += g_r[c, j] * fhat[c]
+            res[f, j] += g_f[c, j] * fhat[c]
+        cons[c] = x[r, 2] - x[f, 2]
+    axial = (ax + load_w) / scale
+    norm = abs(axial)
+    for i in range(res.shape[0]):
+        for j in range(6):
+            v = abs(res[i, j])
+            if v > norm or v != v:
+                norm = v
+    for c in range(rear.shape[0]):
+        v = abs(cons[c])
+        if v > norm or v != v:
+            norm = v
+    return axial, norm
+
+
+@_jit
+def _alloc(n, kc):
+    """Work arrays of one residual evaluation (see ``_residual``)."""
+    return (np.empty((n, 6)), np.empty((n, 6, 7)), np.empty((n, 7)), np.empty((n, 10)),
+            np.empty((n, 4, 3)), np.empty((kc, 6)), np.empty((kc, 6)), np.empty(kc),
+            np.empty((kc, 6, 6)), np.empty((kc, 6, 6)), np.empty((kc, 6, 6)),
+            np.empty((kc, 6, 6)), np.empty(kc))
+
+
+@_jit
+def solve_active(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
+                 grid, scale, load_w, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, tol,
+                 max_it, max_rate, disp_limit):
+    """
+    Newton with trust region and halving line search for one active set.
+
+    Same iteration as ``EquilibriumSolver.solve_active`` (numpy path) with the exact
+    Jacobian.  Returns (x, u, fhat, ok, iterations, norm, terms, per_contact, speed).
+    """
+    n = x.shape[0]
+    kc = rear.shape[0]
+    cur = _alloc(n, kc)
+    trial = _alloc(n, kc)
+    x = x.copy()
+    fhat = fhat.copy()
+    axial, norm = _residual(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
+                            coef_n, grid, scale, load_w, rear, front, b_r, b_f, c_r, c_f,
+                            k_r, k_f, cur[0], cur[1], cur[2], cur[3], cur[4], cur[5], cur[6],
+                            cur[7], cur[8], cur[9], cur[10], cur[11], cur[12])
+    rear_of, front_of, seq, starts, ok_chain = chains(n, rear, front)
+    if not ok_chain:
+        return x, u, fhat, False, 0, norm, cur[3], cur[4], cur[7]
+    xs = np.empty((n, 7, 9))
+    ys = np.empty((n, 7, 2))
+    dx = np.empty((n, 6))
+    df = np.zeros(kc)
+    xn = np.empty((n, 6))
+    fn = np.empty(kc)
+    it = 0
+    while norm > tol and it < max_it:
+        it += 1
+        du = newton_direction(seq, starts, rear_of, front_of, cur[1], cur[2], cur[0], axial,
+                              cur[12], fhat, cur[5], cur[6], cur[8], cur[9], cur[10],
+                              cur[11], xs, ys, dx, df)
+        big_r = 0.0
+        big_d = abs(du)
+        for i in range(n):
+            for j in range(2):
+                big_d = max(big_d, abs(dx[i, j]))
+            for j in range(2, 6):
+                big_r = max(big_r, abs(dx[i, j]))
+        big = max(big_r / max_rate, big_d / disp_limit)
+        step = 1.0 / big if big > 1.0 else 1.0
+        if not math.isfinite(big):
+            return x, u, fhat, False, it, norm, cur[3], cur[4], cur[7]
+        un = u
+        nn = norm
+        ax_n = axial
+        for _ in range(_N_TRIAL):
+            for i in range(n):
+                for j in range(6):
+                    xn[i, j] = x[i, j] + step * dx[i, j]
+            un = u + step * du
+            for c in range(kc):
+                fn[c] = fhat[c] + step * df[c]
+            ax_n, nn = _residual(xn, un, fn, centres, sign, cst, k_load, k_axis, on_nut,
+                                 coef_s, coef_n, grid, scale, load_w, rear, front, b_r, b_f,
+                                 c_r, c_f, k_r, k_f, trial[0], trial[1], trial[2], trial[3],
+                                 trial[4], trial[5], trial[6], trial[7], trial[8], trial[9],
+                                 trial[10], trial[11], trial[12])
+            if math.isfinite(nn) and (nn < norm or nn <= tol):
+                break
+            step *= 0.5
+        x, xn = xn, x
+        fhat, fn = fn, fhat
+        u = un
+        axial = ax_n
+        norm = nn
+        cur, trial = trial, cur
+    return x, u, fhat, norm <= tol, it, norm, cur[3], cur[4], cur[7]
