@@ -176,6 +176,7 @@ class FrictionNode(Node):
         msg.torque_total_nm = pred.torque_total_nm
         msg.torque_b2g_nm = pred.torque_b2g_nm
         msg.torque_b2b_nm = pred.torque_b2b_nm
+        msg.torque_empirical_nm = pred.torque_empirical_nm
         msg.converged = pred.converged
         msg.model_age_s = pred.model_age_s
         msg.n_groups = len(pred.groups)
@@ -404,6 +405,7 @@ def _prediction_dict(msg):
             "nut_angle_rad": msg.nut_angle_rad, "nut_velocity_rad_s": msg.nut_velocity_rad_s,
             "axial_load_n": msg.axial_load_n, "torque_total_nm": msg.torque_total_nm,
             "torque_b2g_nm": msg.torque_b2g_nm, "torque_b2b_nm": msg.torque_b2b_nm,
+            "torque_empirical_nm": msg.torque_empirical_nm,
             "converged": msg.converged, "model_latency_s": msg.model_latency_s,
             "model_age_s": msg.model_age_s, "n_groups": msg.n_groups}
 

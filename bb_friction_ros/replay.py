@@ -112,15 +112,24 @@ def replay(bag, out, config=None, settings=ReplaySettings(), topics=Topics(), pr
 
 
 def write_prediction_csv(path, preds, meas=None):
-    """One row per nut-state sample; ``torque_meas_nm`` column only when measured."""
+    """
+    Write one row per nut-state sample.
+
+    ``torque_meas_nm`` is added when measured, ``torque_empirical_nm`` (last) when the model
+    carries fitted terms; the first six columns never move.
+    """
+    empirical = any(p.torque_empirical_nm != 0.0 for p in preds)
     with open(path, "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(CSV_COLUMNS + (["torque_meas_nm"] if meas is not None else []))
+        w.writerow(CSV_COLUMNS + (["torque_meas_nm"] if meas is not None else [])
+                   + (["torque_empirical_nm"] if empirical else []))
         for i, p in enumerate(preds):
             row = [f"{p.stamp_s:.9f}", repr(p.nut_angle_rad), repr(p.nut_velocity_rad_s),
                    repr(p.axial_load_n), repr(p.torque_total_nm), repr(p.torque_b2b_nm)]
             if meas is not None:
                 row.append(repr(float(meas[i])))
+            if empirical:
+                row.append(repr(p.torque_empirical_nm))
             w.writerow(row)
 
 

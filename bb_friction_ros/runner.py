@@ -42,6 +42,7 @@ class Prediction:
     torque_total_nm: float
     torque_b2g_nm: float
     torque_b2b_nm: float
+    torque_empirical_nm: float  # fitted terms (discrepancy workflow); 0 without them
     converged: bool
     model_age_s: float          # input time since the model state used was computed
     groups: tuple               # ((ball ids rear first), (b2b forces N)) per contact group
@@ -119,11 +120,18 @@ class ModelRunner:
     ``n_balls``.
     """
 
-    def __init__(self, screw, model_rate_hz):
-        """Wrap ``screw``; it steps at most once per 1/model_rate_hz of input time."""
+    def __init__(self, screw, model_rate_hz, terms=None):
+        """
+        Wrap ``screw``; it steps at most once per 1/model_rate_hz of input time.
+
+        ``terms`` (a discrepancy TermSet, optional) adds fitted empirical torque, evaluated
+        at every sample's own inputs; its time is the stamp since the run's first sample.
+        """
         if not model_rate_hz > 0:
             raise ValueError(f"model_rate_hz must be > 0, got {model_rate_hz}")
         self.screw = screw
+        self.terms = terms
+        self._first_stamp = None
         self.period_s = 1.0 / model_rate_hz
         self.stats = RunnerStats()
         self._last_stamp = None
@@ -132,6 +140,7 @@ class ModelRunner:
 
     def reset(self):
         """Forget the model state; the next sample starts a new run."""
+        self._first_stamp = None
         self._last_stamp = None
         self._model_stamp = None
         self._state = None
@@ -156,6 +165,7 @@ class ModelRunner:
         self._last_stamp = sample.stamp_s
         stepped = False
         if self._state is None:
+            self._first_stamp = sample.stamp_s
             self.screw.reset(sample.nut_angle_rad)
             self._state = self._step(sample, 0.0)
             self._model_stamp = sample.stamp_s
@@ -168,9 +178,14 @@ class ModelRunner:
             else:
                 self.stats.skipped_steps += 1
         st = self._state
+        extra = 0.0
+        if self.terms is not None:
+            extra = float(self.terms.torque_nm(sample.stamp_s - self._first_stamp,
+                                               sample.nut_angle_rad, sample.nut_velocity_rad_s,
+                                               sample.axial_load_n))
         return Prediction(sample.stamp_s, sample.nut_angle_rad, sample.nut_velocity_rad_s,
-                          sample.axial_load_n, st.torque_total_nm, st.torque_b2g_nm,
-                          st.torque_b2b_nm, bool(st.converged),
+                          sample.axial_load_n, st.torque_total_nm + extra, st.torque_b2g_nm,
+                          st.torque_b2b_nm, extra, bool(st.converged),
                           sample.stamp_s - self._model_stamp, _groups(st.groups),
                           int(np.size(st.azimuth_rad)), stepped)
 
@@ -215,10 +230,21 @@ class InputAssembler:
 
 
 def build_runner(config_path, model_rate_hz):
-    """Build a ModelRunner around the whole-screw model of a ball-screw YAML config."""
+    """
+    Build a ModelRunner around the whole-screw model of a ball-screw YAML config.
+
+    A top-level ``empirical_terms`` list in the same file (``augmented.yaml`` of the
+    discrepancy workflow) adds its fitted terms to every prediction.
+    """
     from bb_friction_ros.ball_screw.parameters import load_ball_screw
     from bb_friction_ros.ball_screw.whole_screw import WholeScrew
-    return ModelRunner(WholeScrew(load_ball_screw(config_path)), model_rate_hz)
+    from bb_friction_ros.config import load_yaml
+    terms = None
+    raw = load_yaml(config_path)
+    if isinstance(raw, dict) and raw.get("empirical_terms"):
+        from bb_friction_ros.discrepancy.terms import load_terms
+        terms = load_terms(raw["empirical_terms"])
+    return ModelRunner(WholeScrew(load_ball_screw(config_path)), model_rate_hz, terms)
 
 
 def _groups(groups):

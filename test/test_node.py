@@ -39,8 +39,8 @@ def test_live_node_equals_replay(ros_context):
         assert live["torque_b2b_nm"] == core.torque_b2b_nm
         # parts come from the losses, the total from the nut's equilibrium: they agree to
         # the solver's power balance (<= 4.4e-8 in the Sec. 3.4 run), hence 1e-6
-        assert live["torque_b2g_nm"] + live["torque_b2b_nm"] == pytest.approx(
-            live["torque_total_nm"], rel=1e-6)
+        assert live["torque_b2g_nm"] + live["torque_b2b_nm"] + live["torque_empirical_nm"] \
+            == pytest.approx(live["torque_total_nm"], rel=1e-6)
         assert live["n_groups"] == len(core.groups) and live["converged"]
     # contact groups: ball ids in order, one force between consecutive balls, forces >= 0
     assert groups, "contact groups are published at a rate and on change"

@@ -66,6 +66,7 @@ def test_schedule_follows_stamps_and_resets_on_backwards_time():
              for t in (0.0, 0.002, 0.009, 0.010, 0.015, 0.030)]
     assert [p.stepped for p in preds] == [True, False, False, True, False, True]
     assert preds[2].torque_total_nm == 0.0 and preds[2].model_age_s == pytest.approx(0.009)
+    assert preds[2].torque_empirical_nm == 0.0
     assert [c for c in screw.calls if c[0] == "step"][1][2] == pytest.approx(0.010)
     p = runner.process(InputSample(0.001, 5.0, 1.0, 100.0))     # stamps went backwards
     assert runner.stats.resets == 1 and p.stepped and screw.calls[-2] == ("reset", 5.0)
