@@ -306,8 +306,9 @@ def play_through_node(events, parameters=None, context=None, speed=1.0, settle_s
     Events go out at their recorded pace divided by ``speed`` (publisher -> node ->
     subscriber, all in this process).  With ``lockstep`` each message waits until the node
     has taken it (and answered or rejected a nut state) before the next goes out: exact
-    comparisons with replay then never depend on machine load.  Returns (predictions as Prediction-like dicts,
-    contact-group messages, the node's diagnostics values, DiagnosticArray messages).
+    comparisons with replay then never depend on machine load.  Returns (predictions as
+    Prediction-like dicts, contact-group messages, the node's diagnostics values,
+    DiagnosticArray messages).
     """
     from rclpy.parameter import Parameter
     from rclpy.executors import MultiThreadedExecutor
