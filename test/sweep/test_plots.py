@@ -1,11 +1,12 @@
 """Plots: heatmaps for grids, histograms for Monte Carlo, the sensitivity bars."""
 
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
 from bb_friction_ros.sweep.engine import run_sweep
 from bb_friction_ros.sweep.plots import display_input, grid_medians
 from bb_friction_ros.sweep.spec import spec_from_mapping
-
-import numpy as np
-import pytest
 
 QUIET = {'progress': False, 'log': lambda msg: None}
 
@@ -19,8 +20,7 @@ def test_grid_with_draws_writes_every_plot(tmp_path, client):
     rep = run_sweep(spec, tmp_path, client=client, **QUIET)
     for name in ('grid_heatmaps.png', 'mc_histograms.png', 'sensitivity.png'):
         assert (tmp_path / name).stat().st_size > 1000
-    table = __import__('pyarrow.parquet', fromlist=['x']).read_table(
-        tmp_path / 'results.parquet')
+    table = pq.read_table(tmp_path / 'results.parquet')
     med = grid_medians(spec, table, 'f_b2b_n')
     assert med.shape == (3, 2)
     # contact at (theta, rho) = (+2, -0.6) and (-2, +0.6) only (Fig. 9)
