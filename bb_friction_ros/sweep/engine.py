@@ -201,7 +201,10 @@ def dask_client(workers=None, scheduler=None, processes=True):
     """
     from distributed import Client, LocalCluster
     if scheduler is not None:
-        client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
+        try:
+            client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
+        except (OSError, ValueError) as exc:     # refused, timed out, malformed address
+            raise ConfigError(f"--scheduler {scheduler}: cannot connect ({exc})") from exc
         try:
             yield client, scheduler
         finally:
@@ -229,39 +232,46 @@ def _progress(total, initial, enabled):
                 disable=not enabled, dynamic_ncols=True, smoothing=0.1)
 
 
-def execute(client, spec, batches, parts_dir, bar, max_samples=None):
+@dataclasses.dataclass
+class Tally:
+    """Samples saved and task errors of one execution, kept up to date as parts arrive."""
+
+    saved: int = 0
+    errors: list = dataclasses.field(default_factory=list)
+
+
+def execute(client, spec, batches, parts_dir, bar, max_samples=None, tally=None):
     """
     Run ``batches`` on ``client``, writing each part as it arrives.
 
     Stops early (cancelling what is left) once ``max_samples`` samples are saved.  Returns
-    (samples saved, task errors).
+    the Tally (also updated in place if given, so an interrupted run knows what it saved).
     """
     from distributed import as_completed
+    tally = tally if tally is not None else Tally()
     schema = table_schema(spec)
     key_prefix = f"bb-friction-sweep-{spec.digest()[:16]}-"
     futures = {client.submit(run_batch, spec, b, key=f"{key_prefix}{b}", retries=1): b
                for b in batches}
-    saved, errors = 0, []
-    pending = as_completed(list(futures))
     try:
-        for fut in pending:
+        for fut in as_completed(list(futures)):
             batch = futures[fut]
             if fut.status != "finished":
-                errors.append((batch, repr(fut.exception())))
+                tally.errors.append((batch, repr(fut.exception())))
                 fut.release()
                 continue
             table = batch_table(spec, fut.result(), schema)
             fut.release()
             write_atomic(table, _part_path(parts_dir, batch))
-            saved += table.num_rows
+            tally.saved += table.num_rows
             bar.update(table.num_rows)
-            if max_samples is not None and saved >= max_samples:
+            if max_samples is not None and tally.saved >= max_samples:
                 break
     finally:
         left = [f for f in futures if f.status == "pending"]
         if left:
             client.cancel(left)
-    return saved, errors
+    return tally
 
 
 def compact(spec, out_dir):
@@ -324,37 +334,40 @@ def run_sweep(spec, out_dir, workers=None, scheduler=None, processes=True, max_s
     todo = [b for b in range(spec.n_batches) if b not in done]
     if n_resumed:
         log(f"sweep: resuming, {n_resumed} of {spec.n_samples} samples already saved")
-    n_computed, errors, compute_s = 0, [], 0.0
-    n_workers = n_threads = 0
-    where = scheduler or "local"
+    tally = Tally()
+    rep = RunReport(out_dir, spec.n_samples, n_resumed, 0, False, 0.0, 0.0, 0, 0,
+                    scheduler or "local", tuple(todo))
     if todo:
         session = _borrowed(client) if client is not None \
             else dask_client(workers, scheduler, processes)
-        with session as (client, where):
-            info = client.scheduler_info()["workers"]
-            n_workers, n_threads = len(info), sum(w["nthreads"] for w in info.values())
-            bar = _progress(spec.n_samples, n_resumed, progress)
-            t1 = time.perf_counter()
-            try:
-                n_computed, errors = execute(client, spec, todo, parts_dir, bar, max_samples)
-            finally:
-                compute_s = time.perf_counter() - t1
-                bar.close()
-    complete = len(completed_batches(spec, parts_dir)) == spec.n_batches
-    rep = RunReport(out_dir, spec.n_samples, n_resumed, n_computed, complete,
-                    time.perf_counter() - t0, compute_s, n_workers, n_threads, where,
-                    tuple(todo), tuple(errors))
-    if todo:
-        append_history(out_dir, rep)
-    for batch, err in errors:
+        try:
+            with session as (client, where):
+                rep.scheduler = where
+                info = client.scheduler_info()["workers"]
+                rep.workers, rep.threads = len(info), sum(w["nthreads"] for w in info.values())
+                bar = _progress(spec.n_samples, n_resumed, progress)
+                t1 = time.perf_counter()
+                try:
+                    execute(client, spec, todo, parts_dir, bar, max_samples, tally)
+                finally:
+                    rep.compute_wall_s = time.perf_counter() - t1
+                    bar.close()
+        finally:    # also when interrupted: the history counts what was saved
+            rep.n_computed, rep.task_errors = tally.saved, tuple(tally.errors)
+            rep.wall_s = time.perf_counter() - t0
+            append_history(out_dir, rep)
+    else:
+        rep.wall_s = time.perf_counter() - t0
+    rep.complete = len(completed_batches(spec, parts_dir)) == spec.n_batches
+    for batch, err in rep.task_errors:
         log(f"sweep: batch {batch} failed as a task ({err}); rerun to retry it")
-    if complete:
+    if rep.complete:
         table = compact(spec, out_dir)
         rep.summary = report.write_summary(spec, table, read_history(out_dir), out_dir)
         if plots:
             from bb_friction_ros.sweep import plots as plotting
             plotting.plot_all(spec, table, rep.summary, out_dir)
     else:
-        log(f"sweep: {n_resumed + n_computed} of {spec.n_samples} samples saved in "
+        log(f"sweep: {n_resumed + rep.n_computed} of {spec.n_samples} samples saved in "
             f"{out_dir}; run the same command again to resume")
     return rep

@@ -140,3 +140,35 @@ def test_failed_task_is_not_saved_and_retried_next_run(tmp_path, linear_mc, clie
     monkeypatch.setattr(engine, 'run_batch', original)
     second = run_sweep(spec, tmp_path, client=client, **QUIET)
     assert second.complete and second.batches_submitted == (1,)
+
+
+def test_unreachable_scheduler_names_the_flag(tmp_path, linear_mc, monkeypatch):
+    import socket
+    with socket.socket() as sock:          # a free port nobody listens on
+        sock.bind(('127.0.0.1', 0))
+        port = sock.getsockname()[1]
+    monkeypatch.setattr(engine, 'CONNECT_TIMEOUT_S', 1)
+    with pytest.raises(ConfigError, match='--scheduler'):
+        run_sweep(linear_mc(samples=5), tmp_path, scheduler=f'tcp://127.0.0.1:{port}', **QUIET)
+
+
+def test_interrupted_run_keeps_its_parts_and_history(tmp_path, linear_mc, client, monkeypatch):
+    """Ctrl-C while results arrive: saved batches stay, the history counts them."""
+    spec = linear_mc(samples=20)
+    original = engine.write_atomic
+    calls = []
+
+    def interrupt_on_second(table, path):
+        calls.append(path)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        original(table, path)
+    monkeypatch.setattr(engine, 'write_atomic', interrupt_on_second)
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(spec, tmp_path, client=client, **QUIET)
+    monkeypatch.setattr(engine, 'write_atomic', original)
+    assert len(parts(tmp_path)) == 1
+    (record,) = engine.read_history(tmp_path)
+    assert record['n_computed'] == spec.batch_size
+    rest = run_sweep(spec, tmp_path, client=client, **QUIET)
+    assert rest.complete and rest.n_computed == spec.n_samples - spec.batch_size
