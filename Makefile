@@ -20,6 +20,7 @@ test: setup
 
 demo: setup
 	$(VENV)/bin/bb-friction reproduce --out out/reproduce
+	$(VENV)/bin/bb-friction demo --out out/demo
 
 # Build products and outputs; keeps .venv (see distclean).
 clean:

@@ -196,8 +196,12 @@ def _demo_events(recording=None):
 
 
 def _run_demo(args):
+    import os
     from pathlib import Path
     from bb_friction_ros.demo import run_demo
+    # DDS stays on this machine, on a domain of this run's own (set before rclpy.init).
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    os.environ.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 101))
     return run_demo(Path(args.out), _demo_events(), speed=args.speed)
 
 

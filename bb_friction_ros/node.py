@@ -89,6 +89,7 @@ class FrictionNode(Node):
         self._received = collections.Counter()
         self._published = 0
         self._latest = None
+        self._latest_stamp = None
         self._last_groups = None
         self._reset_note = ""
         self._t_start = time.monotonic()
@@ -128,7 +129,8 @@ class FrictionNode(Node):
                 return
             if len(self._queue) == self._queue.maxlen:
                 self._dropped += 1      # deque drops the oldest: the newest input wins
-            self._queue.append((sample, t_recv))
+            # the original stamp goes out unchanged: float seconds lose ~0.2 us at epoch times
+            self._queue.append((sample, t_recv, msg.header.stamp))
             self._wake.notify()
 
     def _on_axial_load(self, msg):
@@ -151,7 +153,7 @@ class FrictionNode(Node):
                 self._queue.clear()
                 runner = self._runner
             # Every input is answered; only the newest may step the model (newest wins).
-            for k, (sample, t_recv) in enumerate(backlog):
+            for k, (sample, t_recv, stamp) in enumerate(backlog):
                 resets = runner.stats.resets
                 try:
                     pred = runner.process(sample, allow_step=k == len(backlog) - 1)
@@ -165,11 +167,11 @@ class FrictionNode(Node):
                     self._reset_note = (f"input stamps went backwards at {sample.stamp_s:.6f}"
                                         " s: model state reset")
                     self.get_logger().warning(self._reset_note)
-                self._publish_prediction(pred, t_recv)
+                self._publish_prediction(pred, t_recv, stamp)
 
-    def _publish_prediction(self, pred, t_recv):
+    def _publish_prediction(self, pred, t_recv, stamp):
         msg = FrictionPrediction()
-        msg.header.stamp = _stamp_msg(pred.stamp_s)
+        msg.header.stamp = stamp
         msg.nut_angle_rad = pred.nut_angle_rad
         msg.nut_velocity_rad_s = pred.nut_velocity_rad_s
         msg.axial_load_n = pred.axial_load_n
@@ -186,18 +188,19 @@ class FrictionNode(Node):
         with self._lock:
             self._published += 1
             self._latest = pred
+            self._latest_stamp = stamp
             changed = pred.groups != self._last_groups
         if changed:
             self._publish_groups()
 
     def _publish_groups(self):
         with self._lock:
-            pred = self._latest
+            pred, stamp = self._latest, self._latest_stamp
             if pred is None:
                 return
             self._last_groups = pred.groups
         msg = ContactGroupStatus()
-        msg.header.stamp = _stamp_msg(pred.stamp_s)
+        msg.header.stamp = stamp
         msg.nut_angle_rad = pred.nut_angle_rad
         msg.n_balls = pred.n_balls
         msg.groups = [ContactGroup(ball_ids=[int(i) for i in ids],
@@ -336,6 +339,8 @@ def play_through_node(events, parameters=None, context=None, speed=1.0, settle_s
     spinner.start()
     try:
         _wait_for_match(node, pub_state, pub_load)
+        _handshake(node, pub_load, next(e for e in events if e.kind == "axial_load"))
+        handshakes = node.diagnostics_values(advance=False)[0]["received_axial_load"]
         t_wall0 = time.monotonic()
         t_rec0 = None
         sent = sent_loads = 0
@@ -359,8 +364,8 @@ def play_through_node(events, parameters=None, context=None, speed=1.0, settle_s
                 pub_load.publish(msg)
                 sent_loads += 1
             if lockstep:
-                _wait_until(node, lambda v: v["received_axial_load"] >= sent_loads
-                            and v["published"] + v["rejected_nut_state"] >= sent)
+                _wait_until(node, lambda v: v["published"] + v["rejected_nut_state"] >= sent
+                            and v["received_axial_load"] >= sent_loads + handshakes)
         deadline = time.monotonic() + settle_s
         while time.monotonic() < deadline:
             values, _ = node.diagnostics_values()
@@ -390,6 +395,25 @@ def _wait_for_match(node, *publishers, timeout_s=5.0):
             return
         time.sleep(0.01)
     raise RuntimeError("friction_node did not subscribe to the inputs in time")
+
+
+def _handshake(node, pub_load, first_load, timeout_s=5.0):
+    """
+    Re-send the first load until the node has one: the inputs are then truly matched.
+
+    A message sent before the reader has matched the writer is lost even with reliable
+    QoS; a held load sent twice changes nothing.
+    """
+    msg = WrenchStamped()
+    msg.header.stamp = _stamp_msg(first_load.stamp_s)
+    msg.wrench.force.z = float(first_load.value)
+    deadline = time.monotonic() + timeout_s
+    while node.diagnostics_values(advance=False)[0]["received_axial_load"] == 0:
+        if time.monotonic() > deadline:
+            raise RuntimeError("friction_node received no input within "
+                               f"{timeout_s} s")
+        pub_load.publish(msg)
+        time.sleep(0.02)
 
 
 def _wait_until(node, condition, timeout_s=10.0):

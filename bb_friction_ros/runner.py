@@ -7,8 +7,9 @@ and the same prediction rule.  Given the same accepted samples they give the sam
 which is what makes replay a faithful stand-in for the live node.
 
 Schedule: the whole-screw model steps when the input stamps have advanced by at least one
-model period (``1 / model_rate_hz``) since its last step; it then advances the ball azimuths
-by the measured nut rotation since that step.  Every nut-state sample gets a prediction from
+model period (``1 / model_rate_hz``) since its last step, or at once when the direction of
+the nut motion changes (start, stop, reversal); it then advances the ball azimuths by the
+measured nut rotation since that step.  Every nut-state sample gets a prediction from
 the latest model state (zero-order hold; its age is reported), so the output keeps the input
 rate while the model runs at its own rate.
 """
@@ -136,6 +137,7 @@ class ModelRunner:
         self.stats = RunnerStats()
         self._last_stamp = None
         self._model_stamp = None
+        self._model_direction = 0.0
         self._state = None
 
     def reset(self):
@@ -144,6 +146,17 @@ class ModelRunner:
         self._last_stamp = None
         self._model_stamp = None
         self._state = None
+
+    def warm_up(self, axial_load_n, nut_velocity_rad_s):
+        """
+        Run one reset and step, then forget them (``stats`` untouched).
+
+        Pays compilation and first-solve costs before inputs arrive, so a live node's
+        first input is not late; node and replay both do it (identical state after).
+        """
+        self.screw.reset(0.0)
+        self.screw.step(0.0, nut_velocity_rad_s, axial_load_n, 0.0)
+        self.reset()
 
     def reject(self, reason):
         """Count an input rejected before it reached the runner."""
@@ -169,11 +182,16 @@ class ModelRunner:
             self.screw.reset(sample.nut_angle_rad)
             self._state = self._step(sample, 0.0)
             self._model_stamp = sample.stamp_s
+            self._model_direction = np.sign(sample.nut_velocity_rad_s)
             stepped = True
-        elif sample.stamp_s - self._model_stamp >= self.period_s - 1e-12:
+        elif (sample.stamp_s - self._model_stamp >= self.period_s - 1e-12
+              or np.sign(sample.nut_velocity_rad_s) != self._model_direction):
+            # A reversal (or a start/stop) is due at once: Coulomb friction flips there, and
+            # a held torque of the old sign is the worst feed-forward a controller can get.
             if allow_step:
                 self._state = self._step(sample, sample.stamp_s - self._model_stamp)
                 self._model_stamp = sample.stamp_s
+                self._model_direction = np.sign(sample.nut_velocity_rad_s)
                 stepped = True
             else:
                 self.stats.skipped_steps += 1
@@ -244,7 +262,10 @@ def build_runner(config_path, model_rate_hz):
     if isinstance(raw, dict) and raw.get("empirical_terms"):
         from bb_friction_ros.discrepancy.terms import load_terms
         terms = load_terms(raw["empirical_terms"])
-    return ModelRunner(WholeScrew(load_ball_screw(config_path)), model_rate_hz, terms)
+    cfg = load_ball_screw(config_path)
+    runner = ModelRunner(WholeScrew(cfg), model_rate_hz, terms)
+    runner.warm_up(cfg.operation.axial_load_n, cfg.operation.nut_speed_rad_s)
+    return runner
 
 
 def _groups(groups):

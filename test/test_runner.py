@@ -72,3 +72,12 @@ def test_schedule_follows_stamps_and_resets_on_backwards_time():
     assert runner.stats.resets == 1 and p.stepped and screw.calls[-2] == ("reset", 5.0)
     p = runner.process(InputSample(0.020, 6.0, 1.0, 100.0), allow_step=False)
     assert not p.stepped and runner.stats.skipped_steps == 1
+
+
+def test_reversal_steps_at_once():
+    """A change of direction is a step due now, not at the next period."""
+    runner = ModelRunner(RecordingScrew(), model_rate_hz=100.0)
+    steps = [runner.process(InputSample(t, t, w, 100.0)).stepped
+             for t, w in ((0.0, 1.0), (0.002, 1.0), (0.004, -1.0), (0.006, -1.0),
+                          (0.008, 0.0), (0.009, 0.0), (0.018, 0.0))]
+    assert steps == [True, False, True, False, True, False, True]
