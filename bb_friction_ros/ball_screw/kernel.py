@@ -307,12 +307,12 @@ def b2b_terms(x, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, want_jac, g_r, g_f, 
 
 
 @_jit
-def _gauss(d, w):
-    """Solve d @ X = w in place (w <- X); partial pivoting; singular -> diagonal shift."""
+def _gauss(d, w, j0, d0, w0):
+    """Solve d @ X = w[:, j0:] in place; partial pivoting; singular -> diagonal shift."""
     n = d.shape[0]
     m = w.shape[1]
-    d0 = d.copy()
-    w0 = w.copy()
+    d0[:, :] = d
+    w0[:, :] = w
     for attempt in range(2):
         singular = False
         for col in range(n):
@@ -330,7 +330,7 @@ def _gauss(d, w):
                     tmp = d[col, j]
                     d[col, j] = d[piv, j]
                     d[piv, j] = tmp
-                for j in range(m):
+                for j in range(j0, m):
                     tmp = w[col, j]
                     w[col, j] = w[piv, j]
                     w[piv, j] = tmp
@@ -340,12 +340,12 @@ def _gauss(d, w):
                 if fac != 0.0:
                     for j in range(col + 1, n):
                         d[r, j] -= fac * d[col, j]
-                    for j in range(m):
+                    for j in range(j0, m):
                         w[r, j] -= fac * w[col, j]
         if not singular:
             for col in range(n - 1, -1, -1):
                 inv = 1.0 / d[col, col]
-                for j in range(m):
+                for j in range(j0, m):
                     acc = w[col, j]
                     for k in range(col + 1, n):
                         acc -= d[col, k] * w[k, j]
@@ -357,7 +357,7 @@ def _gauss(d, w):
             for j in range(n):
                 d[r, j] = d0[r, j]
             d[r, r] += shift
-            for j in range(m):
+            for j in range(j0, m):
                 w[r, j] = w0[r, j]
     return False
 
@@ -401,6 +401,8 @@ def newton_direction(seq, starts, rear_of, front_of, jac, dax, res, axial, cons,
     """
     d = np.empty((7, 7))
     w = np.empty((7, 9))
+    d0 = np.empty((7, 7))
+    w0 = np.empty((7, 9))
     lm = np.empty((7, 7))
     acc_y = 0.0
     acc_w = 0.0
@@ -461,7 +463,8 @@ def newton_direction(seq, starts, rear_of, front_of, jac, dax, res, axial, cons,
                         for m in range(7):
                             acc += lm[r, m] * xs[k - 1, m, j]
                         w[r, j] -= acc
-            _gauss(d, w)
+            # U = 0 at a chain's end (and for a free ball): only the two right-hand sides.
+            _gauss(d, w, 0 if c >= 0 else 7, d0, w0)
             for r in range(7):
                 for j in range(9):
                     xs[k, r, j] = w[r, j]
@@ -600,3 +603,29 @@ def solve_active(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
         norm = nn
         cur, trial = trial, cur
     return x, u, fhat, norm <= tol, it, norm, cur[3], cur[4], cur[7]
+
+
+@_jit
+def pool_adjacent_violators(y):
+    """L2 projection of y onto non-decreasing sequences (pool-adjacent-violators)."""
+    n = y.shape[0]
+    means = np.empty(n)
+    counts = np.empty(n, dtype=np.int64)
+    nb = 0
+    for i in range(n):
+        means[nb] = y[i]
+        counts[nb] = 1
+        nb += 1
+        while nb > 1 and means[nb - 2] > means[nb - 1]:
+            c = counts[nb - 2] + counts[nb - 1]
+            means[nb - 2] = (means[nb - 2] * counts[nb - 2]
+                             + means[nb - 1] * counts[nb - 1]) / c
+            counts[nb - 2] = c
+            nb -= 1
+    out = np.empty(n)
+    k = 0
+    for b in range(nb):
+        for _ in range(counts[b]):
+            out[k] = means[b]
+            k += 1
+    return out

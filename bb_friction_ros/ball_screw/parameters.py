@@ -136,6 +136,10 @@ class SolverSettings:
                                                lo_open=True)
     min_axial_load_n: float = field(1e-6, "N", "with zero preload, below this |W| no ball is "
                                     "loaded: zero friction is returned", lo=0.0)
+    realtime_max_iterations: int = field(0, "1", "real-time mode: Newton iterations per "
+                                         "warm step at most; when they run out the step "
+                                         "returns its last iterate with converged = false. "
+                                         "0 = off (iterate to tolerance)", lo=0, hi=1000)
     map_polar_nodes: int = field(160, "1", "polar nodes of the friction map", lo=16,
                                  hi=4096)
     map_azimuth_nodes: int = field(256, "1", "azimuth nodes of the friction map", lo=16,

@@ -51,6 +51,7 @@ class Solution:
     residual: float
     terms: dict = field(default_factory=dict)     # last ``BallGrooveModel.evaluate`` output
     b2b_speed: np.ndarray = None                  # slip speed per candidate pair
+    budget_exhausted: bool = False                # stopped by ``max_total_iterations``
 
 
 class EquilibriumSolver:
@@ -72,6 +73,21 @@ class EquilibriumSolver:
         self._coef = tuple(m.cell_coefficients for m in b.maps)
         m0 = b.maps[0]
         self._grid = np.array([m0.n_polar, m0.n_azimuth, m0.dt, m0.dh], dtype=float)
+        if self.use_kernel:
+            self._warm_up()
+
+    def _warm_up(self):
+        """
+        Load (or compile) the kernel now, not in the first step: one evaluation of two balls.
+
+        numba loads the cached machine code at the first call (about 0.2 s; a first compile
+        takes seconds), which would otherwise stall a live node's first input.
+        """
+        x = self.ball.rolling_guess(2, 1.0)
+        centres = self.ball.arc_centres(np.zeros(2), 0.0, 0.0)
+        pair = np.array([0]), np.array([1])
+        self._solve_active_kernel(x, 0.0, np.zeros(1), centres, 1.0, 1.0, 1.0, *pair, 0)
+        kernel.pool_adjacent_violators(np.zeros(2))
 
     def _approach_units(self, load_n):
         """Hertz approach of a screw contact under ``load_n``, in LENGTH_SCALE_M units."""
@@ -258,29 +274,36 @@ class EquilibriumSolver:
         return x, u, f_hat, bool(norm <= st.tolerance), it, norm, t, sp
 
     def solve(self, x, u, centres, sign, load_w, scale, pair_rear, pair_front, active,
-              f_guess=None):
+              f_guess=None, max_total_iterations=None):
         """
         Equilibrium with exact B2B complementarity over the candidate (touching) pairs.
 
         pair_rear/pair_front: ball indices of candidate pairs, in chain order (a pair's
         front ball is the next pair's rear ball when they share it).  ``active``: initial
-        active set (bool per pair).  Forces returned in newtons.
+        active set (bool per pair).  Forces returned in newtons.  ``max_total_iterations``
+        (real-time mode) caps the Newton iterations over all active sets; when it stops the
+        solve, the result has ``converged = False`` and ``budget_exhausted = True``.
         """
         st = self.settings
         active = np.asarray(active, dtype=bool).copy()
         f_all = np.zeros(pair_rear.size) if f_guess is None else np.asarray(f_guess) / scale
         total_it = 0
         ok = False
+        exhausted = False
         for _ in range(st.max_active_set_changes):
             idx = np.flatnonzero(active)
             rear, front = pair_rear[idx], pair_front[idx]
             f0 = np.maximum(f_all[idx], 0.0)
-            x, u, f_hat, ok, it, norm, t, sp = self.solve_active(x, u, f0, centres, sign,
-                                                                 load_w, scale, rear, front)
+            left = None if max_total_iterations is None else \
+                max(int(max_total_iterations) - total_it, 0)
+            x, u, f_hat, ok, it, norm, t, sp = self.solve_active(
+                x, u, f0, centres, sign, load_w, scale, rear, front,
+                st.max_iterations if left is None else min(st.max_iterations, left))
             total_it += it
             f_all = np.zeros(pair_rear.size)
             f_all[idx] = f_hat
             if not ok:
+                exhausted = left is not None and it >= left and bool(np.isfinite(norm))
                 break
             changed = False
             neg = idx[f_hat < -st.tolerance]
@@ -300,4 +323,5 @@ class EquilibriumSolver:
         if pair_rear.size:
             speed = self.b2b.speed(x[pair_rear], x[pair_front], sign)
         return Solution(x=x, u=u, forces=f_all * scale, active=active, converged=ok,
-                        iterations=total_it, residual=norm, terms=t, b2b_speed=speed)
+                        iterations=total_it, residual=norm, terms=t, b2b_speed=speed,
+                        budget_exhausted=exhausted)

@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bb_friction_ros.ball_screw import geometry as geo
+from bb_friction_ros.ball_screw import kernel
 from bb_friction_ros.ball_screw.screw_model import ScrewModel
 
 
@@ -81,18 +82,7 @@ def isotonic_ring_projection(azimuth, separation, loop_length):
     order = (np.arange(n) + cut) % n
     pos = azimuth[order] + np.where(order < cut, loop_length, 0.0)
     y = pos - np.arange(n) * separation
-    # Blocks of (mean, count) kept non-decreasing.
-    means, counts = [], []
-    for v in y:
-        means.append(v)
-        counts.append(1)
-        while len(means) > 1 and means[-2] > means[-1]:
-            c = counts[-2] + counts[-1]
-            means[-2] = (means[-2] * counts[-2] + means[-1] * counts[-1]) / c
-            counts[-2] = c
-            means.pop()
-            counts.pop()
-    fitted = np.repeat(means, counts) + np.arange(n) * separation
+    fitted = kernel.pool_adjacent_violators(y) + np.arange(n) * separation
     out = np.empty(n)
     out[order] = fitted - np.where(order < cut, loop_length, 0.0)
     return out
@@ -130,6 +120,7 @@ class WholeScrew:
             + (np.arange(self.n) + 0.5) * (self.loop / self.n)
         self.ratio = np.full(self.n, self.model.ball.rolling_guess(1, 1.0)[0, 2])
         self._state = None          # (x, u, sign, load sign)
+        self._prev = None           # (x, u, forces, nut-angle increment) one step before
         self._active = np.zeros(self.n, dtype=bool)   # per ring pair (j, j+1)
         self._forces = np.zeros(self.n)
 
@@ -188,6 +179,7 @@ class WholeScrew:
         preload = self.model.preload_load() > 0.0
         if omega_n == 0.0 or (not preload
                               and abs(load_w) <= self.config.solver.min_axial_load_n):
+            self._prev = None
             return self._zero_result(omega_n, load_w, dt_s)
         sign = 1.0 if omega_n > 0.0 else -1.0
         phi = self.track_azimuth()
@@ -196,20 +188,53 @@ class WholeScrew:
         scale = self.model.force_scale(self.n, load_w)
         load_sign = 1.0 if load_w >= 0.0 else -1.0
         sol = None
+        prev = None
+        iterations = 0
+        budget = self.config.solver.realtime_max_iterations or None
         if self._state is not None and self._state[2] == sign and self._state[3] == load_sign:
             x, u = self._state[0], self._state[1]
-            faster = self.ratio[rear] > self.ratio[front]
-            active = self._active[pair_idx] | faster
-            sol = self.model.solver.solve(x.copy(), u, centres, sign, load_w, scale, rear,
-                                          front, active, self._forces[pair_idx])
-        if sol is None or not sol.converged:
+            guesses = self._guesses(d_psi)
+            for gx, gu, gf in guesses[:1] if budget else guesses:
+                # Closed pairs keep their predicted force > 0; open ones close if the rear
+                # ball is predicted faster (the active-set loop corrects either guess).
+                faster = gx[rear, 2] * sign > gx[front, 2] * sign
+                active = (self._active[pair_idx] & (gf[pair_idx] > 0.0)) | faster
+                sol = self.model.solver.solve(gx, gu, centres, sign, load_w, scale, rear,
+                                              front, active, gf[pair_idx], budget)
+                iterations += sol.iterations
+                if sol.converged or sol.budget_exhausted:
+                    # Real-time mode: an unfinished iterate is returned, converged = False.
+                    prev = (x, u, self._forces, d_psi)
+                    break
+        if sol is None or not (sol.converged or sol.budget_exhausted):
             free = self.model.cold_solve(*shifts, sign, load_w)
             ratio = free.x[:, 2] * sign
             sol = self.model.solver.solve(free.x, free.u, centres, sign, load_w, scale, rear,
                                           front, ratio[rear] > ratio[front])
             sol.converged = sol.converged and free.converged
+            iterations += sol.iterations
+        sol.iterations = iterations
+        self._prev = prev
         return self._finish(sol, sign, omega_n, load_w, theta, phi, pair_idx, rear, front,
                             t0)
+
+    def _guesses(self, d_psi):
+        """
+        Warm starts: the secant prediction in nut angle, then the previous solution.
+
+        The states (and B2B forces) of the last two steps are extrapolated linearly in the
+        nut angle; the plain previous solution is the fallback if Newton fails from there.
+        """
+        x, u = self._state[0], self._state[1]
+        out = []
+        if self._prev is not None and self._prev[3] != 0.0:
+            r = d_psi / self._prev[3]
+            if 0.0 < r <= 4.0:
+                xp, up, fp = self._prev[:3]
+                out.append((x + r * (x - xp), u + r * (u - up),
+                            self._forces + r * (self._forces - fp)))
+        out.append((x.copy(), u, self._forces))
+        return out
 
     def _finish(self, sol, sign, omega_n, load_w, theta, phi, pair_idx, rear, front, t0):
         """Store the state and build the StepResult."""
@@ -228,17 +253,16 @@ class WholeScrew:
         drive = omega_n * torque
         groups = []
         chain_ids, chain_f = [], []
-        for k in range(pair_idx.size):
-            if not sol.active[k]:
-                continue
-            r, f = int(rear[k]), int(front[k])
+        act = np.flatnonzero(sol.active)
+        for r, f, force in zip(rear[act].tolist(), front[act].tolist(),
+                               sol.forces[act].tolist()):
             if chain_ids and chain_ids[-1] == r:
                 chain_ids.append(f)
-                chain_f.append(float(sol.forces[k]))
+                chain_f.append(force)
             else:
                 if chain_ids:
                     groups.append((tuple(chain_ids), tuple(chain_f)))
-                chain_ids, chain_f = [r, f], [float(sol.forces[k])]
+                chain_ids, chain_f = [r, f], [force]
         if chain_ids:
             groups.append((tuple(chain_ids), tuple(chain_f)))
         return StepResult(
