@@ -29,6 +29,7 @@ ROSDEP_KEYS = {
     'distributed': 'python3-distributed',
     'pyarrow': 'python3-pyarrow-pip',
     'rosbags': 'python3-rosbags-pip',
+    'numba': 'python3-numba',
     'rclpy': 'rclpy',
     'rcl_interfaces': 'rcl_interfaces',
     'ament_index_python': 'ament_index_python',
