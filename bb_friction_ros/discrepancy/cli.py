@@ -1,0 +1,79 @@
+"""
+``bb-friction discrepancy BAG_OR_CSV --out DIR``: the discrepancy workflow (issue #6).
+
+``add_discrepancy_parser(subparsers)`` registers it on the main parser's sub-parsers.  Exit
+status: 0 analysed (summary.json says ``found`` or ``none``); 2 the input is unreadable or
+lacks a measured torque (message on stderr), or the recording is too short or too flat to
+tell (summary.json ``reason``/``missing`` and report.md say what is missing).  A bad config
+or settings file raises ConfigError, which the main CLI prints with status 2.
+"""
+
+import json
+import math
+import sys
+
+from bb_friction_ros.config import ConfigError
+
+
+def add_discrepancy_parser(subparsers):
+    """Register ``discrepancy`` on ``subparsers``."""
+    p = subparsers.add_parser(
+        "discrepancy", help="where and why measured friction differs from the model: "
+        "residual per regime, physically named empirical terms, augmented.yaml, held-out "
+        "RMSE before/after (docs/discrepancy.md)")
+    p.add_argument("input", metavar="BAG_OR_CSV", help="rosbag2 directory (sqlite3 or mcap) "
+                   "with measured_torque, or a CSV with t_s, nut_angle_rad, "
+                   "nut_velocity_rad_s, axial_load_n, torque_meas_nm [, torque_pred_nm]")
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    p.add_argument("--config", help="ball-screw YAML of the model (default: bundled "
+                   "config/ball_screw.yaml); the base of DIR/augmented.yaml")
+    p.add_argument("--settings", help="YAML with a 'discrepancy' mapping: thresholds and grids "
+                   "(docs/discrepancy.md)")
+    p.add_argument("--nut-joint", default="nut_joint", help="joint name in nut_state")
+    p.add_argument("--model-rate-hz", type=float, default=100.0,
+                   help="model steps per second of input time (as replay and the node)")
+    p.add_argument("--measured-topic", default="measured_torque",
+                   help="measured torque topic (geometry_msgs/WrenchStamped torque.z)")
+    p.add_argument("--recompute-prediction", action="store_true",
+                   help="CSV input: run the model even if the CSV has torque_pred_nm")
+    p.add_argument("--no-plots", action="store_true", help="write no PNG figures")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--json", action="store_true", help="print summary.json to stdout")
+    p.set_defaults(func=run_discrepancy_command)
+
+
+def run_discrepancy_command(args):
+    """Handle ``bb-friction discrepancy``; return the exit status."""
+    from bb_friction_ros.bags import Topics
+    from bb_friction_ros.discrepancy.data import InputProblem
+    from bb_friction_ros.discrepancy.settings import load_settings
+    from bb_friction_ros.discrepancy.workflow import run_discrepancy
+    from bb_friction_ros.replay import ReplaySettings
+    if not (math.isfinite(args.model_rate_hz) and args.model_rate_hz > 0):
+        raise ConfigError(f"--model-rate-hz: must be > 0, got {args.model_rate_hz}")
+    settings = load_settings(args.settings)
+    replay_settings = ReplaySettings(nut_joint=args.nut_joint,
+                                     model_rate_hz=args.model_rate_hz)
+    try:
+        status, summary = run_discrepancy(
+            args.input, args.out, config=args.config, settings=settings,
+            replay_settings=replay_settings, topics=Topics(measured_torque=args.measured_topic),
+            recompute=args.recompute_prediction, plots=not args.no_plots,
+            progress=not args.no_progress)
+    except InputProblem as exc:
+        print(f"bb-friction discrepancy: {exc}", file=sys.stderr)
+        return 2
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    if status == 2:
+        print("bb-friction discrepancy: the recording cannot tell (verdict none):",
+              file=sys.stderr)
+        for m in summary["missing"]:
+            print(f"  - {m}", file=sys.stderr)
+    elif not args.json:
+        effects = ", ".join(e["name"] for e in summary["effects"]) or "-"
+        print(f"verdict: {summary['verdict']} ({effects}); held-out RMSE "
+              f"{summary['rmse_before_nm']:.4g} -> {summary['rmse_after_nm']:.4g} N m; noise "
+              f"{summary['noise_std_nm']:.3g} N m")
+    print(f"outputs in {args.out}", file=sys.stderr if args.json else sys.stdout)
+    return status

@@ -1,0 +1,219 @@
+"""
+A recording with measured and predicted torque, from a rosbag2 or a CSV file.
+
+The prediction always comes from the replay path (``replay.run_events``: the live node's
+``InputAssembler`` and ``ModelRunner``), so the residual is what the node would show.
+
+CSV input: a header row and one row per nut-state sample with the columns ``t_s,
+nut_angle_rad, nut_velocity_rad_s, axial_load_n, torque_meas_nm`` (SI; other columns are
+ignored).  ``bb-friction replay``'s own ``prediction.csv`` qualifies when it has
+``torque_meas_nm``; its ``torque_pred_nm`` is then reused as the prediction (it came out of
+the same model path), unless ``recompute`` is set.  Rows with a non-finite measured torque
+are kept for the model (continuity of the ball state) but not analysed.
+"""
+
+import csv
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+
+from bb_friction_ros.bags import Event, read_events, Topics
+from bb_friction_ros.config import bundled_config, ConfigError, load_yaml
+from bb_friction_ros.discrepancy.terms import load_terms
+from bb_friction_ros.replay import ReplaySettings, run_events
+from bb_friction_ros.runner import build_runner, InputAssembler
+
+CSV_REQUIRED = ("t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n",
+                "torque_meas_nm")
+CSV_PREDICTION = "torque_pred_nm"
+
+
+class InputProblem(ValueError):
+    """The input cannot be analysed at all (missing file, no measured torque, bad CSV)."""
+
+
+@dataclasses.dataclass
+class Recording:
+    """Per-sample arrays (SI) of one recording, in log order."""
+
+    t_s: np.ndarray                 # header stamps
+    t_run_s: np.ndarray             # stamp - first stamp since the runner's last reset
+    nut_angle_rad: np.ndarray
+    nut_velocity_rad_s: np.ndarray
+    axial_load_n: np.ndarray
+    torque_meas_nm: np.ndarray      # NaN where there is no measurement
+    torque_pred_nm: np.ndarray
+    converged: np.ndarray           # bool
+    info: dict = dataclasses.field(default_factory=dict)
+
+    def take(self, mask):
+        """Return the sub-recording of the samples where ``mask`` is true."""
+        arrays = {f.name: getattr(self, f.name)[mask] for f in dataclasses.fields(self)
+                  if f.name != "info"}
+        return Recording(info=dict(self.info), **arrays)
+
+    def __len__(self):
+        """Return the number of samples."""
+        return int(self.t_s.size)
+
+
+def run_times(stamps_s):
+    """Return stamp - first stamp of its run; a run restarts where the stamps go backwards."""
+    stamps = np.asarray(stamps_s, dtype=float)
+    if stamps.size == 0:
+        return stamps.copy()
+    start = np.zeros(stamps.size, dtype=bool)
+    start[0] = True
+    start[1:] = np.diff(stamps) < 0.0      # the runner resets on a backward stamp
+    first = stamps[np.maximum.accumulate(np.where(start, np.arange(stamps.size), 0))]
+    return stamps - first
+
+
+def base_terms(config_path):
+    """Return the TermSet already in a config's ``empirical_terms`` (empty when none)."""
+    raw = load_yaml(config_path)
+    return load_terms(raw.get("empirical_terms") if isinstance(raw, dict) else None)
+
+
+def runner_applies_terms():
+    """
+    Tell whether the runner's Prediction carries an empirical part of its own.
+
+    Until it does, the workflow adds a base config's ``empirical_terms`` itself.
+    """
+    from bb_friction_ros.runner import Prediction
+    return any("empirical" in f.name for f in dataclasses.fields(Prediction))
+
+
+def predict_events(events, config_path, replay_settings, progress=False):
+    """Run events through the replay path; return (predictions, runner stats)."""
+    runner = build_runner(config_path, replay_settings.model_rate_hz)
+    assembler = InputAssembler(replay_settings.nut_joint, replay_settings.max_axial_load_n)
+    preds = run_events(events, runner, assembler, progress=progress)
+    return preds, runner.stats
+
+
+def _from_predictions(preds, measured_nm, config_path, info):
+    t = np.array([p.stamp_s for p in preds], dtype=float)
+    t_run = run_times(t)
+    angle = np.array([p.nut_angle_rad for p in preds], dtype=float)
+    speed = np.array([p.nut_velocity_rad_s for p in preds], dtype=float)
+    load = np.array([p.axial_load_n for p in preds], dtype=float)
+    pred = np.array([p.torque_total_nm for p in preds], dtype=float)
+    terms = base_terms(config_path)
+    if len(terms) and not runner_applies_terms():
+        pred = pred + terms.torque_nm(t_run, angle, speed, load)
+        info["base_terms_added_by"] = "discrepancy workflow (runner does not apply them)"
+    info["base_terms"] = list(terms.names)
+    return Recording(t, t_run, angle, speed, load, np.asarray(measured_nm, dtype=float), pred,
+                     np.array([p.converged for p in preds], dtype=bool), info)
+
+
+def load_bag(path, config_path, replay_settings=ReplaySettings(), topics=Topics(),
+             progress=False):
+    """Read a rosbag2, predict through the replay path, align the measured torque."""
+    try:
+        events, counts = read_events(path, topics)
+    except (FileNotFoundError, ValueError) as exc:
+        raise InputProblem(str(exc)) from exc
+    measured = [(e.stamp_s, e.value) for e in events
+                if e.kind == "measured_torque" and np.isfinite(e.value)]
+    if not measured:
+        raise InputProblem(f"{path}: no measured torque: topic {topics.measured_torque!r} "
+                           f"is missing or empty (topics in the bag: "
+                           f"{', '.join(sorted(counts)) or 'none'}); the discrepancy needs "
+                           "a measurement to compare with (--measured-topic)")
+    preds, stats = predict_events(events, config_path, replay_settings, progress)
+    if not preds:
+        raise InputProblem(f"{path}: no usable nut_state sample (rejected: "
+                           f"{dict(stats.rejected) or 'none'})")
+    mt, mv = np.array(measured).T
+    order = np.argsort(mt, kind="stable")
+    t = np.array([p.stamp_s for p in preds])
+    # the measured torque at the prediction stamps, as replay aligns it; none outside its span
+    meas = np.interp(t, mt[order], mv[order], left=np.nan, right=np.nan)
+    info = {"input": str(path), "format": "rosbag2", "prediction_source": "model (replay path)",
+            "messages": counts, "rejected": dict(stats.rejected),
+            "nonconverged_steps": stats.nonconverged_steps, "resets": stats.resets}
+    return _from_predictions(preds, meas, config_path, info)
+
+
+def _read_csv_columns(path):
+    try:
+        fh = open(path, newline="")
+    except OSError as exc:
+        raise InputProblem(f"{path}: cannot read ({exc.strerror})") from exc
+    with fh:
+        reader = csv.DictReader(fh)
+        header = reader.fieldnames or []
+        missing = [c for c in CSV_REQUIRED if c not in header]
+        if missing:
+            raise InputProblem(f"{path}: CSV lacks column(s) {', '.join(missing)} (needs "
+                               f"{', '.join(CSV_REQUIRED)}; optional {CSV_PREDICTION}); "
+                               f"has: {', '.join(header) or 'no header'}")
+        wanted = list(CSV_REQUIRED) + ([CSV_PREDICTION] if CSV_PREDICTION in header else [])
+        cols = {c: [] for c in wanted}
+        for line, row in enumerate(reader, start=2):
+            for c in wanted:
+                try:
+                    cols[c].append(float(row[c]))
+                except (TypeError, ValueError):
+                    raise InputProblem(f"{path}: line {line}, column {c}: not a number "
+                                       f"({row[c]!r})") from None
+    return {c: np.array(v, dtype=float) for c, v in cols.items()}
+
+
+def csv_events(cols, nut_joint):
+    """Return the events a CSV stands for: each row's axial load, then its nut state."""
+    events = []
+    for t, a, w, f in zip(cols["t_s"], cols["nut_angle_rad"], cols["nut_velocity_rad_s"],
+                          cols["axial_load_n"]):
+        events.append(Event("axial_load", float(t), value=float(f)))
+        events.append(Event("nut_state", float(t), (nut_joint,), (float(a),), (float(w),)))
+    return events
+
+
+def load_csv(path, config_path, replay_settings=ReplaySettings(), recompute=False,
+             progress=False):
+    """Read a CSV recording; reuse its ``torque_pred_nm`` unless ``recompute`` (see module)."""
+    cols = _read_csv_columns(path)
+    if cols["t_s"].size == 0:
+        raise InputProblem(f"{path}: CSV has no data rows")
+    for c in ("t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n"):
+        if not np.all(np.isfinite(cols[c])):
+            raise InputProblem(f"{path}: column {c} has non-finite values")
+    info = {"input": str(path), "format": "csv"}
+    if CSV_PREDICTION in cols and not recompute:
+        t_run = run_times(cols["t_s"])
+        info.update(prediction_source=f"csv column {CSV_PREDICTION} (reused)",
+                    base_terms=[])
+        return Recording(cols["t_s"], t_run, cols["nut_angle_rad"],
+                         cols["nut_velocity_rad_s"], cols["axial_load_n"],
+                         cols["torque_meas_nm"], cols[CSV_PREDICTION],
+                         np.ones(cols["t_s"].size, dtype=bool), info)
+    preds, stats = predict_events(csv_events(cols, replay_settings.nut_joint), config_path,
+                                  replay_settings, progress)
+    if len(preds) != cols["t_s"].size:
+        raise InputProblem(f"{path}: {cols['t_s'].size - len(preds)} row(s) rejected by the "
+                           f"model input checks: {dict(stats.rejected)}")
+    info.update(prediction_source="model (replay path, recomputed from the CSV inputs)",
+                rejected=dict(stats.rejected), nonconverged_steps=stats.nonconverged_steps,
+                resets=stats.resets)
+    return _from_predictions(preds, cols["torque_meas_nm"], config_path, info)
+
+
+def load_recording(path, config_path=None, replay_settings=ReplaySettings(), topics=Topics(),
+                   recompute=False, progress=False):
+    """Load a rosbag2 directory or a ``.csv`` file (see module docstring)."""
+    path = Path(path)
+    config_path = config_path or bundled_config("ball_screw.yaml")
+    if not Path(config_path).is_file():
+        raise ConfigError(f"{config_path}: no such config file")
+    if path.is_dir():
+        return load_bag(path, config_path, replay_settings, topics, progress)
+    if path.is_file() and path.suffix.lower() == ".csv":
+        return load_csv(path, config_path, replay_settings, recompute, progress)
+    if not path.exists():
+        raise InputProblem(f"{path}: no such bag or CSV file")
+    raise InputProblem(f"{path}: neither a rosbag2 directory nor a .csv file")

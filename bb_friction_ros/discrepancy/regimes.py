@@ -1,0 +1,145 @@
+"""
+Where the model disagrees: the noise level and the residual per operating regime.
+
+The noise level is estimated from the data, not assumed: the residual's first differences
+remove everything that changes slowly from sample to sample (every candidate effect does),
+and a median absolute deviation ignores the few steps at reversals.  For white noise of std
+sigma the differences have std sigma sqrt(2).
+
+A regime is a bin of one variable: direction, |nut speed| per direction, nut angle within a
+revolution, axial load, time.  Per bin we report the mean residual and the mean "drag excess"
+(residual times sign(omega), over moving samples: a dissipative effect cancels in the plain
+mean over both directions but not in this one), each with its z-value against the noise
+standard error.
+"""
+
+import dataclasses
+import math
+
+import numpy as np
+
+# Median absolute deviation -> standard deviation for a normal distribution.
+MAD_TO_STD = 1.4826
+
+
+def noise_std_nm(residual_nm):
+    """Return the robust noise std [N m] of a residual from its first differences."""
+    r = np.asarray(residual_nm, dtype=float)
+    r = r[np.isfinite(r)]
+    if r.size < 3:
+        return float("nan")
+    d = np.diff(r)
+    return float(MAD_TO_STD * np.median(np.abs(d - np.median(d))) / math.sqrt(2.0))
+
+
+@dataclasses.dataclass(frozen=True)
+class Bin:
+    """One regime: samples where lo <= value(variable) < hi (and the direction, if any)."""
+
+    variable: str
+    label: str
+    lo: float
+    hi: float
+    direction: int = 0        # +1 / -1: only moving samples of that direction; 0: all
+
+
+def _value(variable, x):
+    if variable in ("direction", "speed"):
+        return np.abs(x.nut_velocity_rad_s)
+    if variable == "angle":
+        return np.mod(x.nut_angle_rad, 2.0 * math.pi)
+    if variable == "load":
+        return x.axial_load_n
+    return x.t_s
+
+
+def mask_of(b, x, standstill_rad_s):
+    """Return the boolean mask of bin ``b`` over inputs ``x`` (a terms.Inputs)."""
+    v = _value(b.variable, x)
+    m = (v >= b.lo) & (v < b.hi)
+    if b.direction:
+        m &= (np.sign(x.nut_velocity_rad_s) == b.direction)
+        m &= np.abs(x.nut_velocity_rad_s) > standstill_rad_s
+    return m
+
+
+def _quantile_edges(values, bins):
+    edges = np.unique(np.quantile(values, np.linspace(0.0, 1.0, bins + 1)))
+    if edges.size < 2:
+        edges = np.array([values.min(), values.min()])
+    edges[-1] = np.nextafter(edges[-1], np.inf)          # include the largest sample
+    return edges
+
+
+def _fmt(v):
+    return f"{v:.3g}"
+
+
+def make_bins(x, settings):
+    """Return the regime bins for inputs ``x``; the same bins serve every table."""
+    s = settings.standstill_speed_rad_s
+    speed = np.abs(x.nut_velocity_rad_s)
+    bins = [Bin("direction", "positive", s, math.inf, +1),
+            Bin("direction", "negative", s, math.inf, -1),
+            Bin("direction", "standstill", 0.0, s if s > 0 else np.nextafter(0.0, 1.0))]
+    for sign, name in ((+1, "+"), (-1, "-")):
+        moving = speed[(np.sign(x.nut_velocity_rad_s) == sign) & (speed > s)]
+        if moving.size == 0:
+            continue
+        edges = _quantile_edges(moving, settings.speed_bins)
+        for lo, hi in zip(edges[:-1], edges[1:]):
+            bins.append(Bin("speed", f"{name}[{_fmt(lo)}, {_fmt(hi)}] rad/s", lo, hi, sign))
+    step = 2.0 * math.pi / settings.angle_bins
+    for k in range(settings.angle_bins):
+        lo = k * step
+        bins.append(Bin("angle", f"[{math.degrees(lo):.0f}, {math.degrees(lo + step):.0f}) "
+                        "deg", lo, lo + step))
+    for variable, values, n, unit in (("load", x.axial_load_n, settings.load_bins, "N"),):
+        edges = _quantile_edges(values, n)
+        for lo, hi in zip(edges[:-1], edges[1:]):
+            bins.append(Bin(variable, f"[{_fmt(lo)}, {_fmt(hi)}] {unit}", lo, hi))
+    t0, t1 = float(np.min(x.t_s)), float(np.max(x.t_s))
+    edges = np.linspace(t0, t1, settings.time_bins + 1)
+    edges[-1] = np.nextafter(edges[-1], np.inf)
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        bins.append(Bin("time", f"[{_fmt(lo)}, {_fmt(hi)}] s", lo, hi))
+    return bins
+
+
+def bin_stats(b, x, residual_nm, noise_nm, settings):
+    """Return the statistics of ``residual_nm`` in bin ``b`` (a dict, JSON-ready)."""
+    m = mask_of(b, x, settings.standstill_speed_rad_s) & np.isfinite(residual_nm)
+    n = int(m.sum())
+    row = {"variable": b.variable, "label": b.label, "n": n, "mean_residual_nm": None,
+           "rms_residual_nm": None, "mean_drag_excess_nm": None, "z_mean": None,
+           "z_drag": None, "significant": False}
+    if n == 0:
+        return row
+    r = residual_nm[m]
+    row["mean_residual_nm"] = float(r.mean())
+    row["rms_residual_nm"] = float(np.sqrt(np.mean(r ** 2)))
+    sign = np.sign(x.nut_velocity_rad_s[m])
+    moving = np.abs(x.nut_velocity_rad_s[m]) > settings.standstill_speed_rad_s
+    se = noise_nm / math.sqrt(n) if noise_nm > 0 else math.nan
+    row["z_mean"] = float(row["mean_residual_nm"] / se) if se > 0 else None
+    if moving.any():
+        row["mean_drag_excess_nm"] = float(np.mean(r[moving] * sign[moving]))
+        se_d = noise_nm / math.sqrt(int(moving.sum())) if noise_nm > 0 else math.nan
+        row["z_drag"] = float(row["mean_drag_excess_nm"] / se_d) if se_d > 0 else None
+    row["significant"] = n >= settings.min_bin_samples and any(
+        _is_significant(mean, z, noise_nm, settings)
+        for mean, z in ((row["mean_residual_nm"], row["z_mean"]),
+                        (row["mean_drag_excess_nm"], row["z_drag"])))
+    return row
+
+
+def _is_significant(mean, z, noise_nm, settings):
+    if mean is None or z is None:
+        return False
+    return abs(z) >= settings.flag_z and abs(mean) >= settings.flag_min_bias_fraction \
+        * noise_nm
+
+
+def regime_table(bins, x, residual_nm, noise_nm, settings):
+    """Return one stats row per bin."""
+    return [bin_stats(b, x, np.asarray(residual_nm, float), noise_nm, settings) for b in bins]

@@ -1,0 +1,85 @@
+"""
+Settings of the discrepancy workflow: every threshold is a named, validated field with a reason.
+
+Read from the ``discrepancy:`` mapping of a YAML file (``--settings``); an unknown key or an
+out-of-range value is refused with the dotted key, like every other config of the project.
+"""
+
+import dataclasses
+
+from bb_friction_ros.config import field, from_mapping, load_yaml
+from bb_friction_ros.discrepancy.terms import MAX_LEAD_HARMONICS
+
+
+@dataclasses.dataclass(frozen=True)
+class DiscrepancySettings:
+    """Thresholds and grids of the discrepancy workflow (docs/discrepancy.md)."""
+
+    # --- the time split -------------------------------------------------------------------
+    holdout_fraction: float = field(
+        0.3, "1", "last part of the recording (in samples) held out from fitting; the RMSE "
+        "before/after is reported on it", lo=0.05, hi=0.5)
+    # --- is the recording informative enough? ---------------------------------------------
+    min_samples: int = field(
+        200, "1", "usable samples needed: the fit part must carry ~10 parameters through "
+        "cross-validation folds and the held-out part must give a meaningful RMSE", lo=20,
+        hi=10 ** 9)
+    standstill_speed_rad_s: float = field(
+        0.01, "rad/s", "|nut speed| below which a sample counts as standing still (the "
+        "model's friction is zero there; static friction is indeterminate)", lo=0.0)
+    min_direction_fraction: float = field(
+        0.1, "1", "share of the moving fit samples needed in EACH direction: with one "
+        "direction a drag cannot be told from a torque offset", lo=0.0, hi=0.5)
+    min_speed_ratio: float = field(
+        3.0, "1", "needed ratio of the 90th to the 10th percentile of |nut speed| (moving "
+        "fit samples): with one speed, viscous and constant drag are indistinguishable",
+        lo=1.0)
+    min_load_variation_fraction: float = field(
+        0.1, "1", "needed (P90 - P10) / median of |axial load|; below it load_dependent is "
+        "not tested (it would be a copy of seal_drag)", lo=0.0)
+    min_samples_per_angle_bin: int = field(
+        5, "1", "fit samples needed in every angle bin for lead_error to be tested (the "
+        "nut angle must cover a whole revolution)", lo=1)
+    # --- selection --------------------------------------------------------------------------
+    bic_threshold: float = field(
+        10.0, "1", "BIC decrease a term must bring to enter (and keep) the model: > 10 is "
+        "'very strong' evidence (Kass & Raftery 1995)", lo=0.0)
+    cv_folds: int = field(
+        5, "1", "contiguous time blocks of the fit part for cross-validation: a term must "
+        "also lower the cross-validated RMSE", lo=2, hi=50)
+    max_terms: int = field(3, "1", "most terms selected", lo=1, hi=6)
+    lead_error_harmonics: int = field(
+        2, "1", "harmonics per revolution fitted by lead_error", lo=1, hi=MAX_LEAD_HARMONICS)
+    nonlinear_grid_points: int = field(
+        12, "1", "grid points when profiling a nonlinear parameter (Stribeck velocity, "
+        "thermal time constant) before a bounded 1-D refinement", lo=3, hi=200)
+    stribeck_max_speed_fraction: float = field(
+        0.5, "1", "largest Stribeck velocity tried, as a fraction of the 90th percentile of "
+        "|nut speed|: a larger one makes stribeck a copy of seal_drag", lo=0.01, hi=1.0)
+    thermal_min_tau_fraction: float = field(
+        0.05, "1", "shortest thermal time constant tried, as a fraction of the fit span",
+        lo=1e-3, hi=1.0)
+    thermal_max_tau_fraction: float = field(
+        10.0, "1", "longest thermal time constant tried, as a fraction of the fit span "
+        "(beyond it the drift is linear in time)", lo=1.0, hi=1e3)
+    # --- where: regime table ----------------------------------------------------------------
+    speed_bins: int = field(4, "1", "quantile bins of |nut speed| per direction", lo=1, hi=20)
+    angle_bins: int = field(8, "1", "bins of the nut angle within a revolution", lo=2, hi=72)
+    load_bins: int = field(4, "1", "quantile bins of the axial load", lo=1, hi=20)
+    time_bins: int = field(5, "1", "equal bins of time", lo=1, hi=50)
+    min_bin_samples: int = field(10, "1", "samples needed for a bin to be judged", lo=2)
+    flag_z: float = field(
+        4.0, "1", "a bin's mean residual is significant when it exceeds flag_z noise "
+        "standard errors (4: ~6e-5 false flags per bin under white noise)", lo=1.0)
+    flag_min_bias_fraction: float = field(
+        0.25, "1", "and when it exceeds this fraction of the noise std (relevance, not only "
+        "significance)", lo=0.0)
+
+
+def load_settings(path=None):
+    """Read ``discrepancy:`` settings from YAML (defaults when ``path`` is None)."""
+    data = {}
+    if path is not None:
+        raw = load_yaml(path)
+        data = raw.get("discrepancy", raw) if isinstance(raw, dict) else raw
+    return from_mapping(DiscrepancySettings, data, "discrepancy")

@@ -1,0 +1,164 @@
+"""
+Synthetic recordings with hidden effects, for the tests and the benchmark of the workflow.
+
+A recording is: the model's own prediction for an input trajectory (the baseline) plus one or
+two effects of the library with random but physical magnitudes, plus white noise.  The
+baseline is exactly what the workflow subtracts (its prediction on the same inputs), so it is
+computed once per trajectory and cached on disk (an ``.npz`` keyed by the trajectory, the
+model config and the model's source code), and many recordings are built on it.
+
+The reference trajectory repeats a cycle of speeds in both directions (very slow to fast, so
+Stribeck, viscous and constant drag separate) under a sinusoidal load of another period, so
+the held-out last 30 % sees every regime the fit saw.
+"""
+
+import dataclasses
+import hashlib
+import math
+from pathlib import Path
+
+import numpy as np
+
+from bb_friction_ros.bags import Event
+from bb_friction_ros.config import bundled_config
+from bb_friction_ros.demo import DemoRecording, make_demo_events
+from bb_friction_ros.discrepancy.data import predict_events, Recording, run_times
+from bb_friction_ros.discrepancy.terms import make_term, TermSet
+from bb_friction_ros.replay import ReplaySettings
+
+# One cycle of nut speeds [rev/s]: slow (Stribeck region), fast, medium, fastest.
+CYCLE_REV_S = (0.05, -0.05, 1.0, -1.0, 0.25, -0.25, 2.0, -2.0)
+
+# Physical ranges of the hidden effects [SI], drawn uniformly; "signed" ones get a random
+# sign.  They are a few percent to ~30 % of the model's ~0.25 N m friction torque.
+EFFECT_RANGES = {
+    "viscous_drag": {"c_nm_s_per_rad": (1.5e-3, 6e-3)},
+    "seal_drag": {"torque_nm": (0.015, 0.05)},
+    "stribeck": {"torque_nm": (0.03, 0.08), "velocity_rad_s": (0.5, 2.5)},
+    "load_dependent": {"k_nm_per_n": (1.5e-5, 4e-5)},              # signed: mu off 9-25 %
+    "lead_error": {"sin1_m": (4e-6, 10e-6)},                         # ISO 3408 v_2pi, C5-C7
+    "thermal_drift": {"delta_torque_nm": (0.02, 0.06), "time_constant_s": (3.0, 30.0)},
+}
+SIGNED = {"k_nm_per_n", "delta_torque_nm"}
+NOISE_RANGE_NM = (0.002, 0.008)
+# Second harmonic of the lead error, as a fraction of the first.
+LEAD_SECOND_HARMONIC_MAX = 0.5
+
+
+def reference_trajectory(cycles=3, rate_hz=50.0, segment_s=0.6):
+    """Return the DemoRecording of the reference trajectory (no effects, no noise)."""
+    return DemoRecording(state_rate_hz=rate_hz, load_rate_hz=rate_hz, accel_rad_s2=250.0,
+                         segments_rev_s=CYCLE_REV_S * cycles, segment_duration_s=segment_s,
+                         load_mean_n=1500.0, load_amplitude_n=500.0, load_period_s=3.7,
+                         viscous_drag_nm_s_per_rad=0.0, seal_drag_nm=0.0, noise_nm=0.0)
+
+
+def _cache_key(cfg, config_path, model_rate_hz):
+    h = hashlib.sha256()
+    h.update(repr(dataclasses.astuple(cfg)).encode())
+    h.update(Path(config_path).read_bytes())
+    h.update(repr(float(model_rate_hz)).encode())
+    root = Path(__file__).resolve().parent.parent
+    for pattern in ("ball_screw/*.py", "contact/*.py", "runner.py", "replay.py", "demo.py"):
+        for p in sorted(root.glob(pattern)):
+            h.update(p.read_bytes())
+    return h.hexdigest()[:20]
+
+
+@dataclasses.dataclass
+class Baseline:
+    """Input events of a trajectory and the model's prediction on them."""
+
+    events: list              # axial_load and nut_state events, log order (no measurement)
+    recording: Recording      # torque_meas_nm = NaN; torque_pred_nm = the model
+
+
+def baseline(cfg, config_path=None, model_rate_hz=100.0, cache_dir=None):
+    """Return the Baseline of trajectory ``cfg``: computed once, then read from the cache."""
+    config_path = config_path or bundled_config("ball_screw.yaml")
+    settings = ReplaySettings(nut_joint=cfg.nut_joint, model_rate_hz=model_rate_hz)
+    cache = None
+    if cache_dir is not None:
+        cache = Path(cache_dir) / f"baseline_{_cache_key(cfg, config_path, model_rate_hz)}.npz"
+    stored = {}
+    if cache is not None and cache.is_file():
+        stored = dict(np.load(cache))
+
+    def predict(events):
+        if "pred" not in stored:
+            preds, _ = predict_events(events, config_path, settings)
+            stored.update(pred=np.array([p.torque_total_nm for p in preds]),
+                          converged=np.array([p.converged for p in preds]))
+            if cache is not None:
+                cache.parent.mkdir(parents=True, exist_ok=True)
+                tmp = cache.with_suffix(".tmp.npz")
+                np.savez(tmp, **stored)
+                tmp.replace(cache)
+        return stored["pred"]
+
+    events = [e for e in make_demo_events(cfg, predict) if e.kind != "measured_torque"]
+    states = [e for e in events if e.kind == "nut_state"]
+    t = np.array([e.stamp_s for e in states])
+    loads = _held_loads(events)
+    rec = Recording(t, run_times(t), np.array([e.positions[0] for e in states]),
+                    np.array([e.velocities[0] for e in states]), loads,
+                    np.full(t.size, np.nan), np.asarray(stored["pred"], float),
+                    np.asarray(stored["converged"], bool),
+                    {"input": "synthetic", "prediction_source": "model (replay path)"})
+    return Baseline(events, rec)
+
+
+def _held_loads(events):
+    out, load = [], math.nan
+    for e in events:
+        if e.kind == "axial_load":
+            load = e.value
+        elif e.kind == "nut_state":
+            out.append(load)
+    return np.array(out)
+
+
+def draw_effect(name, rng):
+    """Return a Term of ``name`` with random physical parameters (EFFECT_RANGES)."""
+    values = {}
+    for key, (lo, hi) in EFFECT_RANGES[name].items():
+        v = float(rng.uniform(lo, hi))
+        values[key] = v * rng.choice((-1.0, 1.0)) if key in SIGNED else v
+    if name == "lead_error":                  # random phase and a second harmonic
+        amp, phase = values.pop("sin1_m"), float(rng.uniform(0.0, 2.0 * math.pi))
+        values.update(sin1_m=amp * math.cos(phase), cos1_m=amp * math.sin(phase))
+        amp2 = amp * float(rng.uniform(0.0, LEAD_SECOND_HARMONIC_MAX))
+        phase2 = float(rng.uniform(0.0, 2.0 * math.pi))
+        values.update(sin2_m=amp2 * math.cos(phase2), cos2_m=amp2 * math.sin(phase2))
+    return make_term(name, values)
+
+
+def synthesize(base, terms, noise_nm, rng):
+    """Return (Recording with measured torque, noise array): baseline + terms + noise."""
+    r = base.recording
+    noise = rng.normal(0.0, noise_nm, len(r))
+    hidden = terms.torque_nm(r.t_run_s, r.nut_angle_rad, r.nut_velocity_rad_s,
+                             r.axial_load_n) if len(terms) else 0.0
+    rec = dataclasses.replace(r, torque_meas_nm=r.torque_pred_nm + hidden + noise,
+                              info=dict(r.info, hidden=list(terms.names)))
+    return rec, noise
+
+
+def random_case(base, rng, n_effects):
+    """Return (Recording, hidden TermSet, noise array, noise std) with n_effects random ones."""
+    names = rng.choice(sorted(EFFECT_RANGES), size=n_effects, replace=False)
+    terms = TermSet([draw_effect(str(n), rng) for n in names])
+    noise_nm = float(rng.uniform(*NOISE_RANGE_NM))
+    rec, noise = synthesize(base, terms, noise_nm, rng)
+    return rec, terms, noise, noise_nm
+
+
+def events_with_measurement(events, measured_nm):
+    """Return ``events`` with a measured_torque event after each nut_state (in order)."""
+    out, k = [], 0
+    for e in events:
+        out.append(e)
+        if e.kind == "nut_state":
+            out.append(Event("measured_torque", e.stamp_s, value=float(measured_nm[k])))
+            k += 1
+    return out
