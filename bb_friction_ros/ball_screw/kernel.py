@@ -66,28 +66,25 @@ def _map_eval(coef, t, h, n_pol, n_az, dtm, dhm, val, dvt, dvh):
         j0 = n_az - 1
     sy = yy - j0
     cell = i0 * n_az + j0
+    sy2 = sy * sy
+    sy3 = sy2 * sy
+    sx2 = sx * sx
+    sx3 = sx2 * sx
     for o in range(4):
-        qv0 = qv1 = qv2 = qv3 = 0.0
-        qd0 = qd1 = qd2 = qd3 = 0.0
-        for i in range(4):
-            col = 4 * o + i
-            c0 = coef[cell, 0, col]
-            c1 = coef[cell, 1, col]
-            c2 = coef[cell, 2, col]
-            c3 = coef[cell, 3, col]
-            qv = ((c3 * sy + c2) * sy + c1) * sy + c0
-            qd = (3.0 * c3 * sy + 2.0 * c2) * sy + c1
-            if i == 0:
-                qv0, qd0 = qv, qd
-            elif i == 1:
-                qv1, qd1 = qv, qd
-            elif i == 2:
-                qv2, qd2 = qv, qd
-            else:
-                qv3, qd3 = qv, qd
-        val[o] = ((qv3 * sx + qv2) * sx + qv1) * sx + qv0
-        dvt[o] = ((3.0 * qv3 * sx + 2.0 * qv2) * sx + qv1) / dtm
-        dvh[o] = (((qd3 * sx + qd2) * sx + qd1) * sx + qd0) / dhm
+        b = 4 * o
+        # Power j of s_h at coef[cell, j, 4 o + i]; then the polynomial in s_t (power i).
+        c = coef[cell]
+        qv0 = c[0, b] + c[1, b] * sy + c[2, b] * sy2 + c[3, b] * sy3
+        qv1 = c[0, b + 1] + c[1, b + 1] * sy + c[2, b + 1] * sy2 + c[3, b + 1] * sy3
+        qv2 = c[0, b + 2] + c[1, b + 2] * sy + c[2, b + 2] * sy2 + c[3, b + 2] * sy3
+        qv3 = c[0, b + 3] + c[1, b + 3] * sy + c[2, b + 3] * sy2 + c[3, b + 3] * sy3
+        qd0 = c[1, b] + 2.0 * c[2, b] * sy + 3.0 * c[3, b] * sy2
+        qd1 = c[1, b + 1] + 2.0 * c[2, b + 1] * sy + 3.0 * c[3, b + 1] * sy2
+        qd2 = c[1, b + 2] + 2.0 * c[2, b + 2] * sy + 3.0 * c[3, b + 2] * sy2
+        qd3 = c[1, b + 3] + 2.0 * c[2, b + 3] * sy + 3.0 * c[3, b + 3] * sy2
+        val[o] = qv0 + qv1 * sx + qv2 * sx2 + qv3 * sx3
+        dvt[o] = (qv1 + 2.0 * qv2 * sx + 3.0 * qv3 * sx2) / dtm
+        dvh[o] = (qd0 + qd1 * sx + qd2 * sx2 + qd3 * sx3) / dhm
 
 
 @_jit
@@ -148,8 +145,8 @@ def evaluate_balls(x, u, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coe
             w = ox * nx + oz * nz - gs * ca * nz
             rx = vx / a_s
             ry = vy / a_s
-            rho = max(math.hypot(rx, ry), _TINY)
-            s = math.hypot(rho, w)
+            rho = max(math.sqrt(rx * rx + ry * ry), _TINY)
+            s = math.sqrt(rho * rho + w * w)
             t = math.atan2(rho, w)
             h = math.atan2(ry, rx)
             if k < 2:
@@ -186,29 +183,41 @@ def evaluate_balls(x, u, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coe
                 continue
             a_over_3q = a / (3.0 * q) if (pos and q > 0.0) else 0.0
             inv_dist = 1.0 / dist
+            inv_as = 1.0 / a_s
+            inv_ss = 1.0 / (s * s)
+            inv_rr = 1.0 / (rho * rho)
             for j in range(6):
-                ddx = lam if j == 0 else 0.0
-                ddz = lam if j == 1 else 0.0
-                dn_l = nx * ddx + nz * ddz
-                dnx = (ddx - nx * dn_l) * inv_dist
-                dnz = (ddz - nz * dn_l) * inv_dist
-                dq = 1.5 * kl * sq * dn_l
-                da = a_over_3q * dq
-                dvx = r_b if j == 4 else 0.0
-                dvy = r_b * (oz - gs * ca) * dnx - r_b * ox * dnz
-                dw = ox * dnx + (oz - gs * ca) * dnz
-                if j == 2:
-                    dvy += ell
-                elif j == 3:
-                    dvy -= r_b * nz
-                    dw += nx
-                elif j == 5:
-                    dvy += r_b * nx
-                    dw += nz
-                drx = (dvx - rx * da) / a_s
-                dry = (dvy - ry * da) / a_s
-                dt = (w * (rx * drx + ry * dry) / rho - rho * dw) / (s * s)
-                dh = (rx * dry - ry * drx) / (rho * rho)
+                if j < 2:
+                    # Geometry (xi, zeta): through the normal, the load and the ellipse.
+                    ddx = lam if j == 0 else 0.0
+                    ddz = lam - ddx
+                    dn_l = nx * ddx + nz * ddz
+                    dnx = (ddx - nx * dn_l) * inv_dist
+                    dnz = (ddz - nz * dn_l) * inv_dist
+                    dq = 1.5 * kl * sq * dn_l
+                    da = a_over_3q * dq
+                    dvy = r_b * (oz - gs * ca) * dnx - r_b * ox * dnz
+                    dw = ox * dnx + (oz - gs * ca) * dnz
+                    drx = -rx * da * inv_as
+                    dry = (dvy - ry * da) * inv_as
+                else:
+                    # Rates (w_B, Omega): the velocities only.
+                    dnx = dnz = dq = da = 0.0
+                    dvx = dvy = dw = 0.0
+                    if j == 2:
+                        dvy = ell
+                    elif j == 3:
+                        dvy = -r_b * nz
+                        dw = nx
+                    elif j == 4:
+                        dvx = r_b
+                    else:
+                        dvy = r_b * nx
+                        dw = nz
+                    drx = dvx * inv_as
+                    dry = dvy * inv_as
+                dt = (w * (rx * drx + ry * dry) / rho - rho * dw) * inv_ss
+                dh = (rx * dry - ry * drx) * inv_rr
                 dfx = dvt[0] * dt + dvh[0] * dh
                 dfy = dvt[1] * dt + dvh[1] * dh
                 dmm = dvt[2] * dt + dvh[2] * dh
@@ -603,6 +612,34 @@ def solve_active(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
         norm = nn
         cur, trial = trial, cur
     return x, u, fhat, norm <= tol, it, norm, cur[3], cur[4], cur[7]
+
+
+@_jit
+def ring_projection(azimuth, separation, loop_length):
+    """``whole_screw.isotonic_ring_projection``: PAV on the ring cut at its largest gap."""
+    n = azimuth.shape[0]
+    worst = np.inf
+    best = -np.inf
+    cut = 0
+    for i in range(n):
+        nxt = azimuth[i + 1] if i + 1 < n else azimuth[0] + loop_length
+        gap = nxt - azimuth[i] - separation
+        worst = min(worst, gap)
+        if gap > best:
+            best = gap
+            cut = i + 1
+    if worst >= 0.0:
+        return azimuth.copy()
+    y = np.empty(n)
+    for k in range(n):
+        j = (k + cut) % n
+        y[k] = azimuth[j] + (loop_length if j < cut else 0.0) - k * separation
+    fitted = pool_adjacent_violators(y)
+    out = np.empty(n)
+    for k in range(n):
+        j = (k + cut) % n
+        out[j] = fitted[k] + k * separation - (loop_length if j < cut else 0.0)
+    return out
 
 
 @_jit

@@ -73,6 +73,7 @@ class EquilibriumSolver:
         self._coef = tuple(m.cell_coefficients for m in b.maps)
         m0 = b.maps[0]
         self._grid = np.array([m0.n_polar, m0.n_azimuth, m0.dt, m0.dh], dtype=float)
+        self._cst = {}      # kernel constants per extra oversize (continuation)
         if self.use_kernel:
             self._warm_up()
 
@@ -87,7 +88,7 @@ class EquilibriumSolver:
         centres = self.ball.arc_centres(np.zeros(2), 0.0, 0.0)
         pair = np.array([0]), np.array([1])
         self._solve_active_kernel(x, 0.0, np.zeros(1), centres, 1.0, 1.0, 1.0, *pair, 0)
-        kernel.pool_adjacent_violators(np.zeros(2))
+        kernel.ring_projection(np.array([0.0, 0.5]), 1.0, 10.0)
 
     def _approach_units(self, load_n):
         """Hertz approach of a screw contact under ``load_n``, in LENGTH_SCALE_M units."""
@@ -220,8 +221,12 @@ class EquilibriumSolver:
         """``solve_active`` through the compiled kernel (``kernel.solve_active``)."""
         st = self.settings
         b = self.ball
-        cst = np.array([LENGTH_SCALE_M, b.r_b, b.cos_a, b.sin_a, b.ell, b.mu,
-                        b.free_distance - 0.5 * self.extra_oversize_m, b.r_gear])
+        cst = self._cst.get(self.extra_oversize_m)
+        if cst is None:
+            cst = np.array([LENGTH_SCALE_M, b.r_b, b.cos_a, b.sin_a, b.ell, b.mu,
+                            b.free_distance - 0.5 * self.extra_oversize_m, b.r_gear])
+            if len(self._cst) < 64:
+                self._cst[self.extra_oversize_m] = cst
         disp_limit = max(self.disp_limit, self._approach_units(scale))
         x, u, f_hat, ok, it, norm, terms, per_contact, speed = kernel.solve_active(
             np.ascontiguousarray(x, dtype=float), float(u),

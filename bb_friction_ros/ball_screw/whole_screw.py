@@ -74,18 +74,8 @@ def isotonic_ring_projection(azimuth, separation, loop_length):
     Pool-adjacent-violators on y_i = phi_i - i * separation, with the ring cut at its
     largest gap (occupancy < 1 guarantees one positive gap).
     """
-    n = azimuth.size
-    gaps = np.diff(np.append(azimuth, azimuth[0] + loop_length)) - separation
-    if gaps.min() >= 0.0:
-        return azimuth
-    cut = int(np.argmax(gaps)) + 1
-    order = (np.arange(n) + cut) % n
-    pos = azimuth[order] + np.where(order < cut, loop_length, 0.0)
-    y = pos - np.arange(n) * separation
-    fitted = kernel.pool_adjacent_violators(y) + np.arange(n) * separation
-    out = np.empty(n)
-    out[order] = fitted - np.where(order < cut, loop_length, 0.0)
-    return out
+    return kernel.ring_projection(np.ascontiguousarray(azimuth, dtype=float),
+                                  float(separation), float(loop_length))
 
 
 class WholeScrew:
@@ -135,10 +125,13 @@ class WholeScrew:
         b = self.model.ball
         theta = geo.theta_deviation(phi, e.theta_amplitude_rad, e.theta_cycles_per_rev,
                                     e.theta_phase_rad, e.theta_offset_rad)
-        screw_z = e.screw_lead_error_amplitude_m * np.sin(
-            e.screw_lead_error_cycles_per_rev * phi)
-        chi = phi - self.nut_angle - self.config.track.track_start_rad
-        nut_z = e.nut_lead_error_m * (chi - 0.5 * self.loop) / (2.0 * math.pi)
+        screw_z = nut_z = 0.0
+        if e.screw_lead_error_amplitude_m:
+            screw_z = e.screw_lead_error_amplitude_m * np.sin(
+                e.screw_lead_error_cycles_per_rev * phi)
+        if e.nut_lead_error_m:
+            chi = phi - self.nut_angle - self.config.track.track_start_rad
+            nut_z = e.nut_lead_error_m * (chi - 0.5 * self.loop) / (2.0 * math.pi)
         return theta, b.arc_centres(theta, screw_z * b.cos_a, nut_z * b.cos_a), \
             (theta, screw_z * b.cos_a, nut_z * b.cos_a)
 
