@@ -31,9 +31,9 @@ class DiscrepancySettings:
         0.1, "1", "share of the moving fit samples needed in EACH direction: with one "
         "direction a drag cannot be told from a torque offset", lo=0.0, hi=0.5)
     min_speed_ratio: float = field(
-        3.0, "1", "needed ratio of the 90th to the 10th percentile of |nut speed| (moving "
-        "fit samples): with one speed, viscous and constant drag are indistinguishable",
-        lo=1.0)
+        1.5, "1", "needed ratio of the 90th to the 10th percentile of |nut speed| (moving "
+        "fit samples): with one speed, viscous and constant drag are indistinguishable; "
+        "speeds 1.5x apart already give the two a different ratio", lo=1.0)
     min_load_variation_fraction: float = field(
         0.1, "1", "needed (P90 - P10) / median of |axial load|; below it load_dependent is "
         "not tested (it would be a copy of seal_drag)", lo=0.0)
