@@ -18,6 +18,7 @@ compiled solver uses this form for the exact derivative of the friction directio
 import numpy as np
 
 from bb_friction_ros.ball_screw import geometry as geo
+from bb_friction_ros.ball_screw import kernel
 
 _TINY = 1e-300
 
@@ -71,10 +72,10 @@ class B2BContactModel:
         """
         return self._linear[1.0 if sign > 0 else -1.0]
 
-    def speed(self, x_rear, x_front, sign):
-        """Slip speed |slip| per |omega_N| of each pair (K,), from the linear form."""
+    def speed(self, x, rear, front, sign):
+        """Slip speed |slip| per |omega_N| of the pairs (x[rear], x[front]) (K,)."""
         b_r, b_f = self.linear_terms(sign)[:2]
-        return np.linalg.norm(x_rear @ b_r.T + x_front @ b_f.T, axis=1)
+        return kernel.pair_speed(x, rear, front, b_r, b_f)
 
     def slip(self, x_rear, x_front, sign):
         """Eq. (57): rear-on-front velocity at each B2B point, as K rows in the rear CS_3."""

@@ -316,12 +316,19 @@ def b2b_terms(x, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, want_jac, g_r, g_f, 
 
 
 @_jit
-def _gauss(d, w, j0, d0, w0):
-    """Solve d @ X = w[:, j0:] in place; partial pivoting; singular -> diagonal shift."""
-    n = d.shape[0]
+def _gauss(d, w, n, j0, d0, w0):
+    """
+    Solve d[:n, :n] @ X = w[:n, j0:] in place (w <- X) with partial pivoting.
+
+    A singular block is solved again with a Levenberg-Marquardt diagonal shift, as the
+    numpy path does.  d0, w0: work arrays for the copies that the retry needs.
+    """
     m = w.shape[1]
-    d0[:, :] = d
-    w0[:, :] = w
+    for r in range(n):
+        for j in range(n):
+            d0[r, j] = d[r, j]
+        for j in range(j0, m):
+            w0[r, j] = w[r, j]
     for attempt in range(2):
         singular = False
         for col in range(n):
@@ -360,8 +367,11 @@ def _gauss(d, w, j0, d0, w0):
                         acc -= d[col, k] * w[k, j]
                     w[col, j] = acc * inv
             return True
-        # Levenberg-Marquardt shift, as the numpy path does for a singular block.
-        shift = math.sqrt(2.220446049250313e-16) * max(np.abs(d0).max(), 1e-300)
+        big = 1e-300
+        for r in range(n):
+            for j in range(n):
+                big = max(big, abs(d0[r, j]))
+        shift = math.sqrt(2.220446049250313e-16) * big
         for r in range(n):
             for j in range(n):
                 d[r, j] = d0[r, j]
@@ -424,11 +434,10 @@ def newton_direction(seq, starts, rear_of, front_of, jac, dax, res, axial, cons,
             b = seq[k]
             c = rear_of[b]
             cp = front_of[b]
-            for r in range(7):
-                for j in range(7):
-                    d[r, j] = 0.0
-                for j in range(9):
-                    w[r, j] = 0.0
+            # Block k: rows = ball b's six equations and (if b is the rear of contact c)
+            # equal orbit rates across c; columns = b's states and the force of c.  Without c
+            # (a chain's end or a free ball) U = 0 and the block is the 6 x 6 ball alone.
+            nd = 7 if c >= 0 else 6
             for r in range(6):
                 for j in range(6):
                     d[r, j] = jac[b, r, j]
@@ -441,11 +450,14 @@ def newton_direction(seq, starts, rear_of, front_of, jac, dax, res, axial, cons,
                         d[r, j] += fc * dgr_r[c, r, j]
                         w[r, j] = fc * dgr_f[c, r, j]
                     d[r, 6] = g_r[c, r]
+                    w[r, 6] = 0.0
+                for j in range(7):
+                    d[6, j] = 0.0
+                    w[6, j] = 0.0
                 d[6, 2] = 1.0
                 w[6, 2] = -1.0
                 w[6, 7] = cons[c]
-            else:
-                d[6, 6] = 1.0
+                w[6, 8] = 0.0
             if cp >= 0:
                 fp = fhat[cp]
                 for r in range(6):
@@ -453,30 +465,33 @@ def newton_direction(seq, starts, rear_of, front_of, jac, dax, res, axial, cons,
                         d[r, j] += fp * dgf_f[cp, r, j]
             if k > k0:
                 # L block: this ball's rows on the previous block (its x and the force cp).
-                for r in range(7):
-                    for j in range(7):
-                        lm[r, j] = 0.0
                 fp = fhat[cp]
                 for r in range(6):
                     for j in range(6):
                         lm[r, j] = fp * dgf_r[cp, r, j]
                     lm[r, 6] = g_f[cp, r]
                 for r in range(6):
-                    for j in range(7):
+                    for j in range(9):
+                        if j >= nd and j < 7:
+                            continue
                         acc = 0.0
                         for m in range(7):
                             acc += lm[r, m] * xs[k - 1, m, j]
-                        d[r, j] -= acc
-                    for j in range(7, 9):
-                        acc = 0.0
-                        for m in range(7):
-                            acc += lm[r, m] * xs[k - 1, m, j]
-                        w[r, j] -= acc
-            # U = 0 at a chain's end (and for a free ball): only the two right-hand sides.
-            _gauss(d, w, 0 if c >= 0 else 7, d0, w0)
-            for r in range(7):
-                for j in range(9):
-                    xs[k, r, j] = w[r, j]
+                        if j < 7:
+                            d[r, j] -= acc
+                        else:
+                            w[r, j] -= acc
+            _gauss(d, w, nd, 0 if c >= 0 else 7, d0, w0)
+            if c >= 0:
+                for r in range(7):
+                    for j in range(9):
+                        xs[k, r, j] = w[r, j]
+            else:
+                for r in range(6):
+                    xs[k, r, 7] = w[r, 7]
+                    xs[k, r, 8] = w[r, 8]
+                xs[k, 6, 7] = 0.0
+                xs[k, 6, 8] = 0.0
         for k in range(k1 - 1, k0 - 1, -1):
             for r in range(7):
                 yv = xs[k, r, 7]
@@ -665,4 +680,52 @@ def pool_adjacent_violators(y):
         for _ in range(counts[b]):
             out[k] = means[b]
             k += 1
+    return out
+
+
+@_jit
+def ring_pairs(azimuth, separation, loop_length, gap_tolerance, sign):
+    """
+    ``WholeScrew._pairs``: touching ring pairs (index, rear, front) in chain order.
+
+    Pair j is (ball j, ball j+1); the order starts after the largest gap (chains never cross
+    it) and runs against the loop for sign < 0.
+    """
+    n = azimuth.shape[0]
+    best = -np.inf
+    start = 0
+    touching = np.empty(n, dtype=np.bool_)
+    for i in range(n):
+        nxt = azimuth[i + 1] if i + 1 < n else azimuth[0] + loop_length
+        gap = nxt - azimuth[i] - separation
+        touching[i] = gap <= gap_tolerance
+        if gap > best:
+            best = gap
+            start = i + 1
+    idx = np.empty(n, dtype=np.int64)
+    k = 0
+    for m in range(n):
+        j = (start + (m if sign > 0 else n - 1 - m)) % n
+        if touching[j]:
+            idx[k] = j
+            k += 1
+    idx = idx[:k]
+    nxt = (idx + 1) % n
+    if sign > 0:
+        return idx, idx.copy(), nxt
+    return idx, nxt, idx.copy()
+
+
+@_jit
+def pair_speed(x, rear, front, b_r, b_f):
+    """|B_r x_rear + B_f x_front| per pair: the B2B slip speed (``b2b.linear_terms``)."""
+    out = np.empty(rear.shape[0])
+    for c in range(rear.shape[0]):
+        acc = 0.0
+        for a in range(3):
+            v = 0.0
+            for j in range(6):
+                v += b_r[a, j] * x[rear[c], j] + b_f[a, j] * x[front[c], j]
+            acc += v * v
+        out[c] = math.sqrt(acc)
     return out

@@ -89,10 +89,14 @@ class EquilibriumSolver:
         pair = np.array([0]), np.array([1])
         self._solve_active_kernel(x, 0.0, np.zeros(1), centres, 1.0, 1.0, 1.0, *pair, 0)
         kernel.ring_projection(np.array([0.0, 0.5]), 1.0, 10.0)
+        kernel.ring_pairs(np.array([0.0, 0.5]), 1.0, 10.0, 0.0, 1.0)
+        self.b2b.speed(x, *pair, 1.0)
 
     def _approach_units(self, load_n):
         """Hertz approach of a screw contact under ``load_n``, in LENGTH_SCALE_M units."""
-        return float(self.ball.hertz[0].approach(load_n)) / LENGTH_SCALE_M
+        # HertzContact.approach for a scalar load, without numpy's per-call overhead.
+        return self.ball.hertz[0].coef_delta_m_per_n23 * max(float(load_n), 0.0) \
+            ** (2.0 / 3.0) / LENGTH_SCALE_M
 
     def _residual(self, x, u, f_hat, centres, sign, load_w, scale, rear, front, jac):
         """Scaled residuals and the Jacobian pieces for a fixed active set."""
@@ -310,6 +314,8 @@ class EquilibriumSolver:
             if not ok:
                 exhausted = left is not None and it >= left and bool(np.isfinite(norm))
                 break
+            if not pair_rear.size:
+                break
             changed = False
             neg = idx[f_hat < -st.tolerance]
             if neg.size:
@@ -320,13 +326,13 @@ class EquilibriumSolver:
             if closing.any() and not neg.size:
                 active |= closing
                 changed = True
-            if not changed:
+            if not changed or not pair_rear.size:
                 break
         else:
             ok = False
         speed = np.zeros(pair_rear.size)
         if pair_rear.size:
-            speed = self.b2b.speed(x[pair_rear], x[pair_front], sign)
+            speed = self.b2b.speed(x, pair_rear, pair_front, sign)
         return Solution(x=x, u=u, forces=f_all * scale, active=active, converged=ok,
                         iterations=total_it, residual=norm, terms=t, b2b_speed=speed,
                         budget_exhausted=exhausted)

@@ -137,17 +137,8 @@ class WholeScrew:
 
     def _pairs(self, sign):
         """Touching ring pairs as (pair index, rear ball, front ball) in chain order."""
-        gaps = np.diff(np.append(self.azimuth, self.azimuth[0] + self.loop)) \
-            - self.separation
-        touching = gaps <= self.config.solver.gap_tolerance_rad
-        start = int(np.argmax(gaps)) + 1     # chains never cross the largest gap
-        order = (np.arange(self.n) + start) % self.n
-        if sign < 0:
-            order = order[::-1]
-        idx = order[touching[order]]
-        nxt = (idx + 1) % self.n
-        rear, front = (idx, nxt) if sign > 0 else (nxt, idx)
-        return idx, rear, front
+        return kernel.ring_pairs(self.azimuth, self.separation, self.loop,
+                                 self.config.solver.gap_tolerance_rad, float(sign))
 
     def _zero_result(self, omega_n, load_w, dt_s):
         """No motion or no load: zero friction, state kept."""
