@@ -21,6 +21,9 @@ test: setup
 demo: setup
 	$(VENV)/bin/bb-friction reproduce --out out/reproduce
 	$(VENV)/bin/bb-friction demo --out out/demo
+	$(VENV)/bin/bb-friction discrepancy out/demo/demo_bag --out out/discrepancy --no-progress
+	$(VENV)/bin/bb-friction replay out/demo/demo_bag --config out/discrepancy/augmented.yaml \
+		--out out/demo/replay_augmented --no-progress
 
 # Build products and outputs; keeps .venv (see distclean).
 clean:
