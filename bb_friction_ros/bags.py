@@ -37,6 +37,17 @@ class Event:
     value: float = float("nan")        # force.z [N] or torque.z [N m]
 
 
+def with_measurement(events, measured_nm):
+    """Return ``events`` with a measured_torque event after each nut_state (in order)."""
+    out, k = [], 0
+    for e in events:
+        out.append(e)
+        if e.kind == "nut_state":
+            out.append(Event("measured_torque", e.stamp_s, value=float(measured_nm[k])))
+            k += 1
+    return out
+
+
 def _typestore():
     return get_typestore(Stores.ROS2_JAZZY)
 

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from bb_friction_ros.bags import Event
+from bb_friction_ros.bags import Event, with_measurement
 from bb_friction_ros.config import field, from_mapping, load_yaml
 
 
@@ -85,14 +85,7 @@ def make_demo_events(cfg, predict):
     rng = np.random.default_rng(cfg.seed)
     measured = (model + cfg.viscous_drag_nm_s_per_rad * speed
                 + cfg.seal_drag_nm * np.sign(speed) + rng.normal(0.0, cfg.noise_nm, t.size))
-    out = []
-    k = 0
-    for ev in events:
-        out.append(ev)
-        if ev.kind == "nut_state":
-            out.append(Event("measured_torque", ev.stamp_s, value=float(measured[k])))
-            k += 1
-    return out
+    return with_measurement(events, measured)
 
 
 def run_demo(out, events, speed=1.0):

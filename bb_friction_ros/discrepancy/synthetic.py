@@ -19,7 +19,6 @@ from pathlib import Path
 
 import numpy as np
 
-from bb_friction_ros.bags import Event
 from bb_friction_ros.config import bundled_config
 from bb_friction_ros.demo import DemoRecording, make_demo_events
 from bb_friction_ros.discrepancy.data import predict_events, Recording, run_times
@@ -151,14 +150,3 @@ def random_case(base, rng, n_effects):
     noise_nm = float(rng.uniform(*NOISE_RANGE_NM))
     rec, noise = synthesize(base, terms, noise_nm, rng)
     return rec, terms, noise, noise_nm
-
-
-def events_with_measurement(events, measured_nm):
-    """Return ``events`` with a measured_torque event after each nut_state (in order)."""
-    out, k = [], 0
-    for e in events:
-        out.append(e)
-        if e.kind == "nut_state":
-            out.append(Event("measured_torque", e.stamp_s, value=float(measured_nm[k])))
-            k += 1
-    return out

@@ -12,12 +12,11 @@ import numpy as np
 import pytest
 import yaml
 
-from bb_friction_ros.bags import write_events
+from bb_friction_ros.bags import with_measurement, write_events
 from bb_friction_ros.ball_screw.parameters import load_ball_screw
 from bb_friction_ros.config import ConfigError
 from bb_friction_ros.discrepancy.cli import add_discrepancy_parser
-from bb_friction_ros.discrepancy.synthetic import (draw_effect, events_with_measurement,
-                                                   synthesize)
+from bb_friction_ros.discrepancy.synthetic import draw_effect, synthesize
 from bb_friction_ros.discrepancy.terms import load_terms, TermSet
 from bb_friction_ros.replay import replay
 
@@ -43,7 +42,7 @@ def recording(base, tmp_path_factory):
     rng = np.random.default_rng(42)
     hidden = TermSet([draw_effect(n, rng) for n in HIDDEN])
     rec, noise = synthesize(base, hidden, NOISE_NM, rng)
-    events = events_with_measurement(base.events, rec.torque_meas_nm)
+    events = with_measurement(base.events, rec.torque_meas_nm)
     root = tmp_path_factory.mktemp("bags")
     bags = {}
     for storage in ("sqlite3", "mcap"):
