@@ -34,8 +34,11 @@ try:
     HAVE_NUMBA = True
 
     def _jit(fn):
-        # fastmath off: the same IEEE arithmetic as the numpy path.
-        return numba.njit(cache=True, error_model="numpy")(fn)
+        # fastmath limited to FMA contraction, reciprocals and reassociation (20 % faster
+        # evaluation, agrees with the numpy path to ~1e-14); never nnan/ninf: the line
+        # search tests for non-finite residuals.
+        return numba.njit(cache=True, error_model="numpy",
+                          fastmath={"contract", "arcp", "reassoc"})(fn)
 except ImportError:        # pragma: no cover - numba is an exec_depend
     HAVE_NUMBA = False
 

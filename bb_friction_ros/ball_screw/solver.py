@@ -7,12 +7,21 @@ equilibrium equations per ball (Eq. 54 plus the B2B terms of Eq. 59), the axial 
 the nut, and equal orbit rates across each active contact (Eq. 60).
 
 Block structure: a ball's equations involve only its own state, u and the forces of its (at
-most two) B2B contacts.  Each Newton step therefore solves all the 6x6 ball blocks at once
-(batched LAPACK), reduces to a tridiagonal system in the B2B forces bordered by u (balls
-touch only their neighbours along a chain) and eliminates u by a Schur complement: the cost
-per iteration is linear in the number of balls.  The direction of the B2B friction is held
-at its current value in the Jacobian (its residual is exact), which keeps the blocks
-independent and costs a little contraction, not accuracy.
+most two) B2B contacts.  Two implementations of the Newton iteration for one active set:
+
+- ``kernel.solve_active`` (numba, the default): exact Jacobian, including the derivatives of
+  the B2B friction direction, which couple touching balls.  The system is block tridiagonal
+  along each chain (blocks of a ball's six states and the force of the contact behind it),
+  bordered by u.  A block Thomas sweep per chain and a Schur complement for u solve it, so the
+  cost per iteration is linear in the number of balls, and convergence stays quadratic along
+  long chains.
+- The numpy path (when numba is missing, or ``use_kernel = False``): all the 6x6 ball blocks
+  are solved at once (batched LAPACK).  This leaves a tridiagonal system in the B2B forces,
+  bordered by u, and u is eliminated by a Schur complement.  The direction of the B2B
+  friction is held at its current value in the Jacobian (its residual is exact).  That keeps
+  the blocks independent and costs contraction, not accuracy.
+
+Both stop at the same residual tolerance and use the same trust region and line search.
 
 Complementarity (Eq. 61) is solved exactly by an active set: a contact with a negative force
 is released, a touching inactive pair whose rear ball orbits faster is closed, until neither

@@ -24,6 +24,19 @@ through its axial displacement, shared by all balls; bulk elastic deformation of
 nut is left out.  Balls never overlap: after each advance, overlaps are removed by the L2
 projection onto non-overlapping positions (pool-adjacent-violators on the ring).  Contacts
 close and open by the exact complementarity of Eq. (61) (``solver``).
+
+Warm start: each step starts from the secant prediction in nut angle: the last two solutions
+(states and B2B forces) are extrapolated linearly.  The initial active set is the closed
+pairs whose predicted force stays positive, plus the open pairs whose rear ball is predicted
+to be faster.  If Newton fails from there, the step retries from the plain previous
+solution.  If that fails too, it cold-starts (``ScrewModel.cold_solve``), as it also does on
+the first step and after a change of sign of omega_N or W.  The answer does not depend on the
+start: every path converges to the same tolerance.
+
+Real-time mode (``solver.realtime_max_iterations`` > 0, default 0 = off) caps the Newton
+iterations of a warm step.  When the cap stops the solve, the step returns its last iterate
+with ``converged = False`` (never silently), keeps it as the state and continues from it at
+the next step.  A cold start is never cut short.
 """
 
 import math
@@ -208,6 +221,8 @@ class WholeScrew:
 
         The states (and B2B forces) of the last two steps are extrapolated linearly in the
         nut angle; the plain previous solution is the fallback if Newton fails from there.
+        (Tried and not kept: a quadratic prediction, and not extrapolating balls whose
+        contacts changed; neither reduced the iterations.)
         """
         x, u = self._state[0], self._state[1]
         out = []
