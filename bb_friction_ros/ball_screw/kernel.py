@@ -732,3 +732,30 @@ def pair_speed(x, rear, front, b_r, b_f):
             acc += v * v
         out[c] = math.sqrt(acc)
     return out
+
+
+@_jit
+def theta_centres(phi, amplitude, cycles, phase, offset, eccentricity, beta0):
+    """
+    theta(phi) and the arc centres (N, 4, 2) without lead errors, in one pass.
+
+    Same as ``geometry.theta_deviation`` then ``geometry.arc_centres`` with zero shifts;
+    eccentricity = R_G - R_B.
+    """
+    n = phi.shape[0]
+    theta = np.empty(n)
+    out = np.empty((n, 4, 2))
+    cb = eccentricity * math.cos(beta0)
+    sb = eccentricity * math.sin(beta0)
+    for i in range(n):
+        th = offset + amplitude * math.sin(cycles * phi[i] + phase)
+        theta[i] = th
+        out[i, 0, 0] = eccentricity * math.cos(beta0 - th)
+        out[i, 0, 1] = eccentricity * math.sin(beta0 - th)
+        out[i, 1, 0] = eccentricity * math.cos(beta0 + th)
+        out[i, 1, 1] = -eccentricity * math.sin(beta0 + th)
+        out[i, 2, 0] = -cb
+        out[i, 2, 1] = -sb
+        out[i, 3, 0] = -cb
+        out[i, 3, 1] = sb
+    return theta, out

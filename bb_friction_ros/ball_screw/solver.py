@@ -99,6 +99,7 @@ class EquilibriumSolver:
         self._solve_active_kernel(x, 0.0, np.zeros(1), centres, 1.0, 1.0, 1.0, *pair, 0)
         kernel.ring_projection(np.array([0.0, 0.5]), 1.0, 10.0)
         kernel.ring_pairs(np.array([0.0, 0.5]), 1.0, 10.0, 0.0, 1.0)
+        kernel.theta_centres(np.zeros(2), 0.0, 1.0, 0.0, 0.0, 1.0, 0.5)
         self.b2b.speed(x, *pair, 1.0)
 
     def _approach_units(self, load_n):

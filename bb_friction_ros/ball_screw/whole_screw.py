@@ -49,6 +49,8 @@ from bb_friction_ros.ball_screw import geometry as geo
 from bb_friction_ros.ball_screw import kernel
 from bb_friction_ros.ball_screw.screw_model import ScrewModel
 
+_TINY = float(np.finfo(float).tiny)
+
 
 @dataclass
 class StepResult:
@@ -136,6 +138,12 @@ class WholeScrew:
         """Arc centres of every ball from theta(phi) and the lead errors (Figs. 15, 17, 19)."""
         e = self.config.errors
         b = self.model.ball
+        if not (e.screw_lead_error_amplitude_m or e.nut_lead_error_m):
+            theta, centres = kernel.theta_centres(
+                np.ascontiguousarray(phi, dtype=float), e.theta_amplitude_rad,
+                e.theta_cycles_per_rev, e.theta_phase_rad, e.theta_offset_rad,
+                b.r_groove - b.r_b, b.beta0)
+            return theta, centres, (theta, 0.0, 0.0)
         theta = geo.theta_deviation(phi, e.theta_amplitude_rad, e.theta_cycles_per_rev,
                                     e.theta_phase_rad, e.theta_offset_rad)
         screw_z = nut_z = 0.0
@@ -246,13 +254,14 @@ class WholeScrew:
         self._forces[pair_idx] = sol.forces
         abs_w = abs(omega_n)
         groove_loss = float(sol.terms["loss"].sum()) * abs_w
-        b2b_loss = float(b.mu * np.sum(sol.forces * sol.b2b_speed)) * abs_w
+        b2b_loss = float(b.mu * np.dot(sol.forces, sol.b2b_speed)) * abs_w \
+            if pair_idx.size else 0.0
         torque = float(sol.terms["nut_torque"].sum()) - load_w * b.r_gear
         loss = groove_loss + b2b_loss
         drive = omega_n * torque
         groups = []
         chain_ids, chain_f = [], []
-        act = np.flatnonzero(sol.active)
+        act = np.flatnonzero(sol.active) if pair_idx.size else pair_idx
         for r, f, force in zip(rear[act].tolist(), front[act].tolist(),
                                sol.forces[act].tolist()):
             if chain_ids and chain_ids[-1] == r:
@@ -269,7 +278,7 @@ class WholeScrew:
             axial_load_n=load_w, torque_total_nm=torque,
             torque_b2g_nm=groove_loss / omega_n, torque_b2b_nm=b2b_loss / omega_n,
             drive_power_w=drive, loss_w=loss, converged=bool(sol.converged),
-            power_balance_error=abs(drive - loss) / max(loss, np.finfo(float).tiny),
+            power_balance_error=abs(drive - loss) / max(loss, _TINY),
             azimuth_rad=phi, theta_rad=theta, omega_b_rad_s=self.ratio * omega_n,
             loads_n=sol.terms["load"].copy(), b2b_forces_n=self._forces.copy(),
             groups=groups, iterations=sol.iterations,

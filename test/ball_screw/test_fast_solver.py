@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from bb_friction_ros.ball_screw import geometry as geo
 from bb_friction_ros.ball_screw import kernel
 from bb_friction_ros.ball_screw.module import solve_two_ball_module
 from bb_friction_ros.ball_screw.parameters import load_ball_screw
@@ -149,3 +150,24 @@ def test_realtime_large_budget_is_the_default(config, model, numpy_run):
     cfg = load_ball_screw(overrides={"solver": {"realtime_max_iterations": 1000}})
     results = run_whole_screw(cfg, n_steps=STEPS, screw=WholeScrew(cfg, model))[0]
     _assert_same_run(results, numpy_run)
+
+
+def test_centres_fast_path_equals_geometry(config, model):
+    screw = WholeScrew(config, model)
+    phi = screw.track_azimuth()
+    theta, centres, shifts = screw._centres(phi)
+    e = config.errors
+    ref = geo.theta_deviation(phi, e.theta_amplitude_rad, e.theta_cycles_per_rev,
+                              e.theta_phase_rad, e.theta_offset_rad)
+    assert theta == pytest.approx(ref, abs=1e-15)
+    assert centres == pytest.approx(model.ball.arc_centres(ref, 0.0, 0.0), abs=1e-18)
+    assert shifts[1] == shifts[2] == 0.0
+
+
+def test_lead_errors_kernel_equals_numpy(model, numpy_model):
+    cfg = load_ball_screw(overrides={"errors": {"nut_lead_error_um": 2.0,
+                                                "screw_lead_error_amplitude_um": 1.0}})
+    fast = run_whole_screw(cfg, n_steps=12, screw=WholeScrew(cfg, model))[0]
+    ref = run_whole_screw(cfg, n_steps=12, screw=WholeScrew(cfg, numpy_model))[0]
+    _assert_same_run(fast, ref)
+    assert all(r.drive_power_w == pytest.approx(r.loss_w, rel=1e-6) for r in fast)
