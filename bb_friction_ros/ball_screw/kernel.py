@@ -523,11 +523,11 @@ def newton_direction(seq, starts, rear_of, front_of, jac, dax, res, axial, cons,
 @_jit
 def _residual(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid,
               scale, load_w, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, res, jac, dax, terms,
-              per_contact, g_r, g_f, speed, dgr_r, dgr_f, dgf_r, dgf_f, cons):
+              per_contact, g_r, g_f, speed, dgr_r, dgr_f, dgf_r, dgf_f, cons, want_jac):
     """Full residual (balls + B2B + axial + equal rates) and Jacobian; returns (axial, norm)."""
     ax = evaluate_balls(x, u, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
-                        grid, scale, True, res, jac, dax, terms, per_contact)
-    b2b_terms(x, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, True, g_r, g_f, speed, dgr_r,
+                        grid, scale, want_jac, res, jac, dax, terms, per_contact)
+    b2b_terms(x, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, want_jac, g_r, g_f, speed, dgr_r,
               dgr_f, dgf_r, dgf_f)
     for c in range(rear.shape[0]):
         r = rear[c]
@@ -578,7 +578,7 @@ def solve_active(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
     axial, norm = _residual(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
                             coef_n, grid, scale, load_w, rear, front, b_r, b_f, c_r, c_f,
                             k_r, k_f, cur[0], cur[1], cur[2], cur[3], cur[4], cur[5], cur[6],
-                            cur[7], cur[8], cur[9], cur[10], cur[11], cur[12])
+                            cur[7], cur[8], cur[9], cur[10], cur[11], cur[12], True)
     rear_of, front_of, seq, starts, ok_chain = chains(n, rear, front)
     if not ok_chain:
         return x, u, fhat, False, 0, norm, cur[3], cur[4], cur[7]
@@ -608,6 +608,10 @@ def solve_active(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
         un = u
         nn = norm
         ax_n = axial
+        # Near the solution (quadratic convergence, measured constant < 1e3) the next iterate
+        # almost surely meets the tolerance: evaluate it without the Jacobian, and add the
+        # Jacobian only if it did not.
+        last = norm * norm * 1e3 <= tol
         for _ in range(_N_TRIAL):
             for i in range(n):
                 for j in range(6):
@@ -619,10 +623,16 @@ def solve_active(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
                                  coef_s, coef_n, grid, scale, load_w, rear, front, b_r, b_f,
                                  c_r, c_f, k_r, k_f, trial[0], trial[1], trial[2], trial[3],
                                  trial[4], trial[5], trial[6], trial[7], trial[8], trial[9],
-                                 trial[10], trial[11], trial[12])
+                                 trial[10], trial[11], trial[12], not last)
             if math.isfinite(nn) and (nn < norm or nn <= tol):
                 break
             step *= 0.5
+        if last and not nn <= tol:
+            ax_n, nn = _residual(xn, un, fn, centres, sign, cst, k_load, k_axis, on_nut,
+                                 coef_s, coef_n, grid, scale, load_w, rear, front, b_r, b_f,
+                                 c_r, c_f, k_r, k_f, trial[0], trial[1], trial[2], trial[3],
+                                 trial[4], trial[5], trial[6], trial[7], trial[8], trial[9],
+                                 trial[10], trial[11], trial[12], True)
         x, xn = xn, x
         fhat, fn = fn, fhat
         u = un
