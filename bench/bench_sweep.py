@@ -7,8 +7,10 @@ Run: .venv/bin/python bench/bench_sweep.py [--linear-samples 10000] [--scaling-s
 2. linear-pair Monte Carlo (config/sweeps/linear_tolerance_mc.yaml, 10^4 samples) on a local
    cluster of all cores   [goal: <= 60 s on 2 cores];
 3. throughput against workers: 1 and 2 local workers, and a LocalCluster whose scheduler runs
-   in a separate process (reached by its tcp:// address, as a remote cluster would be); the
-   overhead per sample is (compute wall x workers) / samples - the serial time per sample;
+   in a separate process (reached by its tcp:// address, as a remote cluster would be), each
+   warmed up first; the cost of the distributed path is the CPU time of client, scheduler and
+   workers per sample against the serial CPU time per sample (CPU time, because the cores are
+   shared: other engineers' load would distort a wall-time comparison);
 4. whole-screw Monte Carlo (config/sweeps/whole_screw_tolerance_mc.yaml: 200 steps per build)
    [goal: 1000 builds <= 10 min locally]; with fewer builds the time for 1000 is extrapolated.
 
@@ -24,10 +26,15 @@ import sys
 import tempfile
 import time
 
+import psutil
+
 from bb_friction_ros.sweep import engine
 from bb_friction_ros.sweep.spec import load_spec
 
 ROOT = Path(__file__).resolve().parent.parent
+# Batches of the warm-up sweep: enough for every worker to import the package and load its
+# friction map before the timed sweep.
+WARM_UP_BATCHES = 4
 SPECS = ROOT / 'config' / 'sweeps'
 # A LocalCluster in its own process: prints its scheduler address, runs until stdin closes.
 EXTERNAL_CLUSTER = """
@@ -48,13 +55,29 @@ def with_samples(spec, samples):
 
 
 def serial_us_per_sample(spec, samples):
-    """Run the first ``samples`` samples in this process (warm caches): us per sample."""
+    """Run ``samples`` samples in this process (warm caches): (wall, CPU) us per sample."""
     spec = with_samples(spec, samples)
     engine.run_batch(spec, 0)                   # builds the friction map, imports
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     for b in range(spec.n_batches):
         engine.run_batch(spec, b)
-    return (time.perf_counter() - t0) / spec.n_samples * 1e6
+    return ((time.perf_counter() - t0) / spec.n_samples * 1e6,
+            (time.process_time() - c0) / spec.n_samples * 1e6)
+
+
+def tree_cpu_s(extra_pids=()):
+    """CPU seconds (user + system) used so far by this process, its children and extra_pids'
+    process trees: the client, scheduler, nannies and workers of a sweep."""
+    roots = [psutil.Process()] + [psutil.Process(p) for p in extra_pids]
+    procs = {p.pid: p for r in roots for p in [r] + r.children(recursive=True)}
+    total = 0.0
+    for p in procs.values():
+        try:
+            t = p.cpu_times()
+        except psutil.NoSuchProcess:
+            continue
+        total += t.user + t.system
+    return total
 
 
 def timed_sweep(spec, out_dir, **kwargs):
@@ -70,12 +93,24 @@ def load():
     return os.getloadavg()[0]
 
 
-def report_line(label, rep, serial_us, load_before):
-    """Print one throughput line."""
-    overhead = rep.compute_wall_s * rep.workers / rep.n_computed * 1e6 - serial_us
-    print(f'{label:<34} {rep.n_computed:>6} samples  wall {rep.wall_s:6.2f} s  compute '
-          f'{rep.compute_wall_s:6.2f} s  {rep.samples_per_s:7.1f} samples/s  overhead '
-          f'{overhead:+6.0f} us/sample  (load before {load_before:.2f})')
+def report_line(label, rep, serial_cpu_us, cpu_s, load_before):
+    """Print one throughput line; the overhead is in CPU time, which other load leaves alone."""
+    cpu_us = cpu_s / rep.n_computed * 1e6
+    print(f'{label:<36} {rep.n_computed} samples  compute {rep.compute_wall_s:5.2f} s  '
+          f'{rep.samples_per_s:6.1f} samples/s  CPU {cpu_us:5.0f} us/sample = serial '
+          f'{cpu_us - serial_cpu_us:+5.0f} ({(cpu_us / serial_cpu_us - 1) * 100:+.1f} %)  '
+          f'(load before {load_before:.2f})')
+
+
+def warm_then_time(spec, out_dir, label, serial_cpu_us, extra_pids=(), **cluster):
+    """On one cluster: a short warm-up sweep (imports, friction maps), then the timed one."""
+    with engine.dask_client(**cluster) as (client, _):
+        warm = with_samples(spec, WARM_UP_BATCHES * spec.batch_size)
+        timed_sweep(warm, out_dir / 'warm-up', client=client)
+        before, cpu0 = load(), tree_cpu_s(extra_pids)
+        rep = timed_sweep(spec, out_dir / 'timed', client=client)
+        cpu_s = tree_cpu_s(extra_pids) - cpu0
+    report_line(label, rep, serial_cpu_us, cpu_s, before)
 
 
 def external_cluster(n_workers):
@@ -111,8 +146,9 @@ def main():
     print(f'machine: {cores} cores, load average {load():.2f} (shared: other work slows '
           'every figure); everything on 127.0.0.1')
     linear = load_spec(SPECS / 'linear_tolerance_mc.yaml')
-    serial = serial_us_per_sample(linear, 2000)
-    print(f'serial, no Dask (linear pair, numerical): {serial:.0f} us/sample')
+    serial, serial_cpu = serial_us_per_sample(linear, 2000)
+    print(f'serial, no Dask (linear pair, numerical): {serial:.0f} us/sample wall, '
+          f'{serial_cpu:.0f} us/sample CPU')
 
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
@@ -124,17 +160,17 @@ def main():
               f'included), compute {rep.compute_wall_s:.1f} s, {rep.samples_per_s:.0f} '
               f'samples/s (load before {before:.2f})   [goal: <= 60 s on 2 cores]')
 
-        print('\nthroughput against workers (linear pair):')
+        print('\nthroughput against workers (linear pair; workers warmed up first; CPU time '
+              'of client, scheduler and workers against the serial CPU time = the cost of the '
+              'distributed path per sample):')
         spec = with_samples(linear, args.scaling_samples)
         for n in (1, 2):
-            before = load()
-            report_line(f'local, {n} worker(s)', timed_sweep(spec, tmp / f'local{n}',
-                                                             workers=n), serial, before)
+            warm_then_time(spec, tmp / f'local{n}', f'local, {n} worker(s)', serial_cpu,
+                           workers=n)
         proc, address = external_cluster(2)
         try:
-            before = load()
-            report_line('scheduler in own process, 2 workers', timed_sweep(
-                spec, tmp / 'external', scheduler=address), serial, before)
+            warm_then_time(spec, tmp / 'external', 'scheduler in own process, 2 workers',
+                           serial_cpu, extra_pids=(proc.pid,), scheduler=address)
         finally:
             stop(proc)
 

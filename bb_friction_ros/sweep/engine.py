@@ -210,12 +210,16 @@ def dask_client(workers=None, scheduler=None, processes=True):
         finally:
             client.close()
         return
+    import dask
     n = workers or os.cpu_count() or 1
     # tcp also for in-process workers (processes=False would default to inproc): the tasks
-    # and results then go through the same serialisation as on a real cluster.
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=processes,
-                           protocol="tcp://", host=LOCALHOST,
-                           dashboard_address=f"{LOCALHOST}:0", silence_logs=logging.ERROR)
+    # and results then go through the same serialisation as on a real cluster.  The workers'
+    # statistical profiler (a stack sample every 10 ms, for the dashboard) costs about 5 % of
+    # a sample's CPU time and nobody reads it here: off.
+    with dask.config.set({"distributed.worker.profile.enabled": False}):
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=processes,
+                               protocol="tcp://", host=LOCALHOST,
+                               dashboard_address=f"{LOCALHOST}:0", silence_logs=logging.ERROR)
     try:
         client = Client(cluster)
         try:

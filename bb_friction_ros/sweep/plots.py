@@ -193,8 +193,12 @@ def plot_all(spec, table, summary, out_dir):
     return paths
 
 
+# Fraction of the figure height left above the panels for the suptitle.
+TITLE_ROOM = 0.04
+
+
 def _save(plt, fig, path):
-    fig.tight_layout()
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, 1.0 - TITLE_ROOM))
     fig.savefig(path, dpi=DPI)
     plt.close(fig)
     return path
