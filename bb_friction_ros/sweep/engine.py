@@ -32,6 +32,7 @@ import os
 from pathlib import Path
 import sys
 import time
+import uuid
 
 import numpy as np
 import pyarrow as pa
@@ -254,14 +255,17 @@ def execute(client, spec, batches, parts_dir, bar, max_samples=None, tally=None)
     from distributed import as_completed
     tally = tally if tally is not None else Tally()
     schema = table_schema(spec)
-    key_prefix = f"bb-friction-sweep-{spec.digest()[:16]}-"
+    # Keys name the sweep and batch for the dashboard; the run token keeps them apart from the
+    # keys of an earlier run on the same cluster, which may still be being cancelled.
+    key_prefix = f"bb-friction-sweep-{spec.digest()[:12]}-{uuid.uuid4().hex[:8]}-"
     futures = {client.submit(run_batch, spec, b, key=f"{key_prefix}{b}", retries=1): b
                for b in batches}
     try:
         for fut in as_completed(list(futures)):
             batch = futures[fut]
             if fut.status != "finished":
-                tally.errors.append((batch, repr(fut.exception())))
+                exc = fut.exception() if fut.status == "error" else None
+                tally.errors.append((batch, repr(exc) if exc else fut.status))
                 fut.release()
                 continue
             table = batch_table(spec, fut.result(), schema)
