@@ -324,6 +324,8 @@ def play_through_node(events, parameters=None, context=None, speed=1.0, settle_s
     if own:
         context = rclpy.Context()
         rclpy.init(context=context)
+    switch_interval = sys.getswitchinterval()
+    sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)      # as friction_node's main() does
     overrides = [Parameter(k, value=v) for k, v in (parameters or {}).items()]
     node = FrictionNode(context=context, parameter_overrides=overrides)
     io = Node("friction_player", context=context)
@@ -385,6 +387,7 @@ def play_through_node(events, parameters=None, context=None, speed=1.0, settle_s
         executor.shutdown()
         node.destroy_node()
         io.destroy_node()
+        sys.setswitchinterval(switch_interval)
         if own:
             rclpy.try_shutdown(context=context)
     return preds, groups, values, diags
