@@ -55,3 +55,12 @@ def test_reproduce_writes_report(tmp_path, capsys):
                  "fig09_b2b_force_and_loss", "fig10_relative_displacement"):
         assert (tmp_path / f"{name}.png").stat().st_size > 10_000
     assert "| f_num |" in (tmp_path / "report.md").read_text()
+
+
+def test_every_documented_command_is_registered(capsys):
+    """The commands the issues name (users script them) are all reachable from main."""
+    from bb_friction_ros.cli import build_parser
+    sub = next(a for a in build_parser()._actions if a.dest == "command")
+    assert {"linear", "reproduce", "screw-pair", "screw-sim", "replay", "node", "demo",
+            "make-demo-bag", "discrepancy", "sweep", "screw-verdict",
+            "linear-mitigate"} <= set(sub.choices)
