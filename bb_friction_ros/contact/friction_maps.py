@@ -138,8 +138,19 @@ def _cache_dir():
 _TABLE_VERSION = "1"   # bump when the integration changes, so stale caches are rebuilt
 
 
+_IN_PROCESS = {}   # tables already loaded here: models built per sample share them (sweeps)
+
+
 def _cached(name, key, build):
-    """Load the arrays of a table from the disk cache, or build and store them."""
+    """Return the arrays of a table: from this process, the disk cache, or built and stored."""
+    where = (str(_cache_dir()), name, key)
+    memo = _IN_PROCESS.get(where)
+    if memo is None:
+        memo = _IN_PROCESS[where] = _cached_on_disk(name, key, build)
+    return memo
+
+
+def _cached_on_disk(name, key, build):
     digest = hashlib.sha256(repr((_TABLE_VERSION, name, key)).encode()).hexdigest()[:16]
     path = _cache_dir() / f"{name}-{digest}.npz"
     try:
@@ -250,11 +261,12 @@ class FrictionMapSphere:
             dth = _periodic_node_slopes(dt_, self.dh)
             return {"values": vals, "dt": dt_, "dh": dh_, "dth": dth}
 
-        arrays = _cached("sphere", (round(self.ellipticity, 12), self.n_polar, self.n_azimuth),
-                         build)
+        key = (round(self.ellipticity, 12), self.n_polar, self.n_azimuth)
+        arrays = _cached("sphere", key, build)
         names = ("values", "dt", "dh", "dth")
         self._v, self._dt, self._dh, self._dth = (arrays[k] for k in names)
-        self._coef = self._cell_coefficients()
+        self._coef = _cached("sphere-cells", key,
+                             lambda: {"coef": self._cell_coefficients()})["coef"]
 
     def _cell_coefficients(self):
         """
