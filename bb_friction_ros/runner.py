@@ -22,6 +22,12 @@ import time
 import numpy as np
 
 
+# Stamps are compared as float seconds: at epoch times (~1.7e9 s) their resolution is ~0.24 us,
+# so five 2 ms intervals may sum to 9.9999998 ms.  Without this slack a 100 Hz model stepped
+# every 12 ms on 500 Hz input (measured: 84 Hz in bench/bench_node.py).
+STAMP_RESOLUTION_S = 1e-6
+
+
 @dataclass(frozen=True)
 class InputSample:
     """One nut-state sample with the axial load held at its stamp (SI units)."""
@@ -184,7 +190,7 @@ class ModelRunner:
             self._model_stamp = sample.stamp_s
             self._model_direction = np.sign(sample.nut_velocity_rad_s)
             stepped = True
-        elif (sample.stamp_s - self._model_stamp >= self.period_s - 1e-12
+        elif (sample.stamp_s - self._model_stamp >= self.period_s - STAMP_RESOLUTION_S
               or np.sign(sample.nut_velocity_rad_s) != self._model_direction):
             # A reversal (or a start/stop) is due at once: Coulomb friction flips there, and
             # a held torque of the old sign is the worst feed-forward a controller can get.

@@ -81,3 +81,12 @@ def test_reversal_steps_at_once():
              for t, w in ((0.0, 1.0), (0.002, 1.0), (0.004, -1.0), (0.006, -1.0),
                           (0.008, 0.0), (0.009, 0.0), (0.018, 0.0))]
     assert steps == [True, False, True, False, True, False, True]
+
+
+def test_model_rate_holds_at_epoch_stamps():
+    """A 100 Hz model on 500 Hz input at epoch-time stamps steps every 5th sample, not 6th."""
+    runner = ModelRunner(RecordingScrew(), model_rate_hz=100.0)
+    t0 = 1_795_000_000.123456789
+    stepped = [runner.process(InputSample(t0 + k / 500.0, 0.0, 1.0, 100.0)).stepped
+               for k in range(501)]
+    assert sum(stepped) == 101
