@@ -210,14 +210,17 @@ class ModelRunner:
         return Prediction(sample.stamp_s, sample.nut_angle_rad, sample.nut_velocity_rad_s,
                           sample.axial_load_n, st.torque_total_nm + extra, st.torque_b2g_nm,
                           st.torque_b2b_nm, extra, bool(st.converged),
-                          sample.stamp_s - self._model_stamp, _groups(st.groups),
-                          int(np.size(st.azimuth_rad)), stepped)
+                          sample.stamp_s - self._model_stamp, self._state_groups,
+                          self._state_n_balls, stepped)
 
     def _step(self, sample, dt_s):
         t0 = time.perf_counter()
         res = self.screw.step(sample.nut_angle_rad, sample.nut_velocity_rad_s,
                               sample.axial_load_n, dt_s)
         self.stats.last_step_wall_s = time.perf_counter() - t0
+        # answered from for every input until the next step: convert once, here
+        self._state_groups = _groups(res.groups)
+        self._state_n_balls = int(np.size(res.azimuth_rad))
         self.stats.model_steps += 1
         if not res.converged:
             self.stats.nonconverged_steps += 1
