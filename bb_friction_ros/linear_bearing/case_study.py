@@ -58,6 +58,7 @@ class LinearPairCase:
         """Keep the config; the friction map is built (or loaded) on first numerical use."""
         self.cfg = cfg
         self._model = None
+        self._hertz = None
 
     @property
     def model(self):
@@ -138,11 +139,13 @@ class LinearPairCase:
                 "valid": four_point, "solve_time_s": elapsed}
 
     def hertz(self):
-        """Hertz contact of the configured ball and groove."""
-        from bb_friction_ros.contact.hertz import HertzContact
-        cfg = self.cfg
-        return HertzContact.ball_in_straight_groove(cfg.ball_radius_m, cfg.conformity,
-                                                    cfg.youngs_modulus_pa, cfg.poisson_ratio)
+        """Return the Hertz contact of the configured ball and groove (solved once)."""
+        if self._hertz is None:
+            from bb_friction_ros.contact.hertz import HertzContact
+            cfg = self.cfg
+            self._hertz = HertzContact.ball_in_straight_groove(
+                cfg.ball_radius_m, cfg.conformity, cfg.youngs_modulus_pa, cfg.poisson_ratio)
+        return self._hertz
 
     def numerical_grid(self, theta_rad, rho):
         """Figs. 8(a), 9(a), 9(c): numerical model over a theta x rho grid (1-D axes)."""
