@@ -132,3 +132,46 @@ def test_bad_ball_screw_yaml_refuses_to_start_naming_the_key(tmp_path, capsys):
     params.write_text(f"friction_node:\n  ros__parameters:\n    config_file: '{bad}'\n")
     assert main(["friction_node", "--ros-args", "--params-file", str(params)]) == 2
     assert "ball_radius" in capsys.readouterr().err
+
+
+def test_console_script_with_bundled_params_file(ros_context, repo_root):
+    """friction_node --ros-args --params-file config/friction_node.yaml answers inputs."""
+    import os
+    import subprocess
+    import sys
+    import time
+    from bb_friction_msgs.msg import FrictionPrediction
+    from geometry_msgs.msg import WrenchStamped
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from sensor_msgs.msg import JointState
+    exe = os.path.join(os.path.dirname(sys.executable), "friction_node")
+    proc = subprocess.Popen([exe, "--ros-args", "--params-file",
+                             str(repo_root / "config" / "friction_node.yaml")])
+    io = Node("script_probe", context=ros_context)
+    got = []
+    io.create_subscription(FrictionPrediction, "friction/prediction", got.append, 10)
+    pub_s = io.create_publisher(JointState, "nut_state", 10)
+    pub_l = io.create_publisher(WrenchStamped, "axial_load", 10)
+    ex = SingleThreadedExecutor(context=ros_context)
+    ex.add_node(io)
+    try:
+        deadline = time.monotonic() + 30.0
+        k = 0
+        while not got and time.monotonic() < deadline and proc.poll() is None:
+            load = WrenchStamped()
+            load.wrench.force.z = 1500.0
+            pub_l.publish(load)
+            msg = JointState(name=["nut_joint"], position=[0.01 * k], velocity=[6.0])
+            msg.header.stamp.sec, msg.header.stamp.nanosec = 100, 1_000_000 * k
+            pub_s.publish(msg)
+            k += 1
+            ex.spin_once(timeout_sec=0.05)
+        assert proc.poll() is None, "friction_node exited"
+        assert got and got[0].converged and got[0].torque_total_nm > 0
+        assert got[0].header.stamp.sec == 100
+    finally:
+        proc.terminate()
+        proc.wait(timeout=10)
+        ex.shutdown()
+        io.destroy_node()
