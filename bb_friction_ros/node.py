@@ -319,7 +319,7 @@ def play_through_node(events, parameters=None, context=None, speed=1.0, settle_s
     DiagnosticArray messages).
     """
     from rclpy.parameter import Parameter
-    from rclpy.executors import MultiThreadedExecutor
+    from rclpy.executors import SingleThreadedExecutor
     own = context is None
     if own:
         context = rclpy.Context()
@@ -339,7 +339,7 @@ def play_through_node(events, parameters=None, context=None, speed=1.0, settle_s
                            lambda m: preds.append(_prediction_dict(m)), reliable)
     io.create_subscription(ContactGroupStatus, "friction/contact_groups", groups.append,
                            reliable)
-    executor = MultiThreadedExecutor(num_threads=2, context=context)
+    executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
     executor.add_node(io)
     spinner = threading.Thread(target=executor.spin, daemon=True)
