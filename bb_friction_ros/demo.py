@@ -142,7 +142,7 @@ def run_demo(out, events, speed=1.0):
     else:
         verdict = (f"max |difference| {max_diff:.3g} N m: the node answered "
                    f"{len(diffs)} of {summary['samples']} inputs and skipped {skipped} model "
-                   "steps because its model is slower than the input (counted in "
-                   "/diagnostics); replay never skips")
+                   "steps where it fell behind the input (counted in /diagnostics); "
+                   "replay never skips")
     print(f"live vs replay over {len(diffs)} common stamps: {verdict}")
     return 0 if preds else 1
