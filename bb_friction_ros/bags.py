@@ -48,6 +48,23 @@ def with_measurement(events, measured_nm):
     return out
 
 
+def measured_torque_at(events, stamps_s):
+    """
+    Return the measured torque interpolated to ``stamps_s`` [N m], or None if none recorded.
+
+    Linear interpolation over the finite recorded samples; NaN outside their span.  Replay
+    and the discrepancy workflow both align the measurement with this, so they agree.
+    """
+    measured = [(e.stamp_s, e.value) for e in events
+                if e.kind == "measured_torque" and np.isfinite(e.value)]
+    if not measured:
+        return None
+    mt, mv = np.array(measured).T
+    order = np.argsort(mt, kind="stable")
+    return np.interp(np.asarray(stamps_s, dtype=float), mt[order], mv[order], left=np.nan,
+                     right=np.nan)
+
+
 def _typestore():
     return get_typestore(Stores.ROS2_JAZZY)
 

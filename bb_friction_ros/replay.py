@@ -9,14 +9,13 @@ so the predictions equal the node's for the same messages (tested).  Writes
 import csv
 from dataclasses import dataclass
 import json
-import math
 from pathlib import Path
 import sys
 import time
 
 import numpy as np
 
-from bb_friction_ros.bags import read_events, Topics
+from bb_friction_ros.bags import measured_torque_at, read_events, Topics
 from bb_friction_ros.config import bundled_config, load_yaml
 from bb_friction_ros.runner import build_runner, InputAssembler, InputError
 
@@ -75,17 +74,9 @@ def replay(bag, out, config=None, settings=ReplaySettings(), topics=Topics(), pr
     preds = run_events(events, runner, assembler, progress=progress)
     wall = time.perf_counter() - t0
 
-    measured = [(e.stamp_s, e.value) for e in events if e.kind == "measured_torque"
-                and math.isfinite(e.value)]
     t = np.array([p.stamp_s for p in preds])
     pred = np.array([p.torque_total_nm for p in preds])
-    meas = None
-    if measured and preds:
-        mt, mv = np.array(measured).T
-        order = np.argsort(mt, kind="stable")
-        mt, mv = mt[order], mv[order]
-        # measured torque at the prediction stamps; outside its span there is none
-        meas = np.interp(t, mt, mv, left=np.nan, right=np.nan)
+    meas = measured_torque_at(events, t) if preds else None
     write_prediction_csv(out / "prediction.csv", preds, meas)
     span = float(t.max() - t.min()) if t.size > 1 else 0.0
     summary = {

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bb_friction_ros.bags import Event, read_events, Topics
+from bb_friction_ros.bags import Event, measured_torque_at, read_events, Topics
 from bb_friction_ros.config import bundled_config, ConfigError, load_yaml
 from bb_friction_ros.discrepancy.terms import load_terms
 from bb_friction_ros.replay import ReplaySettings, run_events
@@ -117,9 +117,7 @@ def load_bag(path, config_path, replay_settings=ReplaySettings(), topics=Topics(
         events, counts = read_events(path, topics)
     except (FileNotFoundError, ValueError) as exc:
         raise InputProblem(str(exc)) from exc
-    measured = [(e.stamp_s, e.value) for e in events
-                if e.kind == "measured_torque" and np.isfinite(e.value)]
-    if not measured:
+    if measured_torque_at(events, []) is None:
         raise InputProblem(f"{path}: no measured torque: topic {topics.measured_torque!r} "
                            f"is missing or empty (topics in the bag: "
                            f"{', '.join(sorted(counts)) or 'none'}); the discrepancy needs "
@@ -128,11 +126,7 @@ def load_bag(path, config_path, replay_settings=ReplaySettings(), topics=Topics(
     if not preds:
         raise InputProblem(f"{path}: no usable nut_state sample (rejected: "
                            f"{dict(stats.rejected) or 'none'})")
-    mt, mv = np.array(measured).T
-    order = np.argsort(mt, kind="stable")
-    t = np.array([p.stamp_s for p in preds])
-    # the measured torque at the prediction stamps, as replay aligns it; none outside its span
-    meas = np.interp(t, mt[order], mv[order], left=np.nan, right=np.nan)
+    meas = measured_torque_at(events, [p.stamp_s for p in preds])   # as replay aligns it
     info = {"input": str(path), "format": "rosbag2", "prediction_source": "model (replay path)",
             "messages": counts, "rejected": dict(stats.rejected),
             "nonconverged_steps": stats.nonconverged_steps, "resets": stats.resets}
