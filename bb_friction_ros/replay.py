@@ -87,22 +87,93 @@ def run_events(events, runner, assembler, progress=False):
 
 
 class _Series:
-    """The plotted columns, kept compact (8 bytes a value) while the bag streams."""
+    """
+    The plotted columns, spilled to a temporary file as the bag streams (constant memory).
+
+    A 10-minute 1 kHz bag has 600k samples; kept as Python objects they took most of the
+    1.2 GB replay peaked at (issue 13 finding 26), and even packed they would be 38 MB.
+    """
+
+    COLUMNS = ("t", "torque", "b2b", "speed", "load", "groups", "largest", "meas")
+    BUFFER_ROWS = 8192
 
     def __init__(self, measured):
-        self.cols = {k: array("d") for k in ("t", "torque", "b2b", "speed", "load", "groups",
-                                             "largest")}
-        self.meas = array("d") if measured else None
+        import tempfile
+        self.measured = measured
+        self._file = tempfile.TemporaryFile()
+        self._buf = array("d")
+        self._pending = []      # rows waiting for their measurement
+        self.rows = 0
 
     def add(self, pred):
-        c = self.cols
-        c["t"].append(pred.stamp_s)
-        c["torque"].append(pred.torque_total_nm)
-        c["b2b"].append(pred.torque_b2b_nm)
-        c["speed"].append(pred.nut_velocity_rad_s)
-        c["load"].append(pred.axial_load_n)
-        c["groups"].append(len(pred.groups))
-        c["largest"].append(max((len(g[0]) for g in pred.groups), default=0))
+        """Append one prediction (its measurement comes later through ``measure``)."""
+        row = (pred.stamp_s, pred.torque_total_nm, pred.torque_b2b_nm,
+               pred.nut_velocity_rad_s, pred.axial_load_n, len(pred.groups),
+               max((len(g[0]) for g in pred.groups), default=0))
+        if self.measured:
+            return row
+        self._append(row + (math.nan,))
+        return None
+
+    def measure(self, row, meas):
+        """Append a row held back by ``add`` with its measured torque."""
+        self._append(row + (meas,))
+
+    def _append(self, row):
+        self._buf.extend(row)
+        self.rows += 1
+        if len(self._buf) >= self.BUFFER_ROWS * len(self.COLUMNS):
+            self._buf.tofile(self._file)
+            del self._buf[:]
+
+    def chunks(self):
+        """Yield the rows written so far as (n, 8) float64 arrays, a buffer at a time."""
+        self._buf.tofile(self._file)
+        del self._buf[:]
+        self._file.flush()
+        self._file.seek(0)
+        width = len(self.COLUMNS)
+        while True:
+            block = np.fromfile(self._file, dtype=np.float64,
+                                count=self.BUFFER_ROWS * width)
+            if block.size == 0:
+                return
+            yield block.reshape(-1, width)
+
+    def decimated(self, buckets=2000):
+        """
+        Return the columns min/max-decimated to ``buckets`` (x repeated twice per bucket).
+
+        At the figure's resolution a min/max envelope draws what every point would, from a
+        bounded number of points.
+        """
+        per = max(1, math.ceil(self.rows / buckets))
+        if per == 1:
+            data = np.concatenate(list(self.chunks()) or [np.zeros((0, 8))])
+            return {k: data[:, i] for i, k in enumerate(self.COLUMNS)}
+        lo, hi, xs = [], [], []
+        carry = np.zeros((0, len(self.COLUMNS)))
+        for block in self.chunks():
+            block = np.concatenate([carry, block])
+            n = (len(block) // per) * per
+            carry = block[n:]
+            if n:
+                b = block[:n].reshape(-1, per, len(self.COLUMNS))
+                lo.append(np.nanmin(b, axis=1) if self.measured else b.min(axis=1))
+                hi.append(np.nanmax(b, axis=1) if self.measured else b.max(axis=1))
+                xs.append(b[:, 0, 0])
+        if len(carry):
+            lo.append(np.nanmin(carry, axis=0)[None] if self.measured else carry.min(0)[None])
+            hi.append(np.nanmax(carry, axis=0)[None] if self.measured else carry.max(0)[None])
+            xs.append(carry[:1, 0])
+        lo, hi, x = np.concatenate(lo), np.concatenate(hi), np.concatenate(xs)
+        out = {k: np.column_stack([lo[:, i], hi[:, i]]).ravel()
+               for i, k in enumerate(self.COLUMNS)}
+        out["t"] = np.repeat(x, 2)
+        return out
+
+    def close(self):
+        self._file.close()
 
 
 class _OutputBag:
@@ -229,6 +300,7 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress):
     series = _Series(measured)
     aligner = MeasuredAligner() if measured else None
     sq_err, n_err = 0.0, 0
+    t_min, t_max = math.inf, -math.inf
     bar = None
     if progress:
         from tqdm import tqdm
@@ -241,9 +313,9 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress):
 
         def emit(done):
             nonlocal sq_err, n_err
-            for (head, tail, pred_nm), meas in done:
+            for (head, tail, pred_nm, row), meas in done:
                 w.writerow(head + [repr(float(meas))] + tail)
-                series.meas.append(meas)
+                series.measure(row, meas)
                 if math.isfinite(meas):
                     sq_err += (meas - pred_nm) ** 2
                     n_err += 1
@@ -262,25 +334,26 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress):
             pred = feed_event(ev, runner, assembler)
             if pred is None:
                 continue
+            t_min, t_max = min(t_min, pred.stamp_s), max(t_max, pred.stamp_s)
             if outbag is not None:
                 outbag.publish(pred, stamp_ns(ev), time.perf_counter() - t_in)
-            series.add(pred)
+            row = series.add(pred)
             head, tail = _row(pred, empirical)
             if aligner is None:
                 w.writerow(head + tail)
             else:
-                emit(aligner.add_prediction(pred.stamp_s, (head, tail, pred.torque_total_nm)))
+                emit(aligner.add_prediction(pred.stamp_s,
+                                            (head, tail, pred.torque_total_nm, row)))
         if aligner is not None:
             emit(aligner.finish())
     wall = time.perf_counter() - t0
     if bar is not None:
         bar.close()
-    t = np.frombuffer(series.cols["t"]) if len(series.cols["t"]) else np.zeros(0)
-    span = float(t.max() - t.min()) if t.size > 1 else 0.0
     stats = runner.stats
+    span = (t_max - t_min) if series.rows > 1 else 0.0
     summary = {
         "messages": dict(src.counts),
-        "samples": int(t.size),
+        "samples": series.rows,
         "rejected": dict(stats.rejected),
         "resets": stats.resets,
         "model_steps": stats.model_steps,
@@ -291,8 +364,9 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress):
     }
     if measured:
         summary["rmse_nm"] = math.sqrt(sq_err / n_err) if n_err else None
-    if t.size:
+    if series.rows:
         plot_replay(out, series)
+    series.close()
     return summary
 
 
@@ -330,13 +404,13 @@ def nothing_accepted_message(src, stats, settings):
 
 
 def plot_replay(out, series):
-    """Predicted vs measured torque, and the B2B groups over time."""
+    """Predicted vs measured torque, and the B2B groups over time (min/max decimated)."""
     import matplotlib.pyplot as plt
-    c = {k: np.frombuffer(v) for k, v in series.cols.items()}
+    c = series.decimated()
     t = c["t"] - c["t"][0]
     fig, ax = plt.subplots(3, 1, figsize=(10, 8), sharex=True)
-    if series.meas is not None:
-        ax[0].plot(t, np.frombuffer(series.meas), lw=0.6, color="0.5", label="measured")
+    if series.measured:
+        ax[0].plot(t, c["meas"], lw=0.6, color="0.5", label="measured")
     ax[0].plot(t, c["torque"], lw=1.0, label="predicted (total)")
     ax[0].plot(t, c["b2b"], lw=1.0, label="predicted B2B part")
     ax[0].set_ylabel("friction torque [N m]")
