@@ -158,8 +158,11 @@ class FrictionNodeHarness:
     input_topics : (str, str)
         Where the harness publishes nut states and loads (match your remappings).
 
+    Notes
+    -----
     Attributes ``predictions``, ``contact_groups``, ``feedforward`` and ``diagnostics`` are
     Collectors; ``collect(topic, type)`` adds one for any other topic.
+
     """
 
     def __init__(self, parameters=None, params_file=None, domain_id=None, context=None,
@@ -179,6 +182,7 @@ class FrictionNodeHarness:
         self._spinner = None
         self._collectors = {}
         self._handshake_done = False
+        self._spinning = False
 
     # --- life cycle -----------------------------------------------------------------------
     def start(self):
@@ -226,7 +230,8 @@ class FrictionNodeHarness:
             self._executor = SingleThreadedExecutor(context=self.context)
             self._executor.add_node(self.node)
             self._executor.add_node(self.io)
-            self._spinner = threading.Thread(target=self._executor.spin, daemon=True,
+            self._spinning = True
+            self._spinner = threading.Thread(target=self._spin, daemon=True,
                                              name="friction_node_harness")
             self._spinner.start()
             self._wait_for_match()
@@ -238,12 +243,13 @@ class FrictionNodeHarness:
     def stop(self):
         """Stop the node and the executor; shut the context down if the harness made it."""
         import rclpy
+        self._spinning = False
+        if self._spinner is not None:
+            self._spinner.join(timeout=5.0)   # stop spinning before the executor goes
+            self._spinner = None
         if self._executor is not None:
             self._executor.shutdown()
             self._executor = None
-        if self._spinner is not None:
-            self._spinner.join(timeout=5.0)   # before the context goes: it is still waiting
-            self._spinner = None
         if self.node is not None:
             self.node.destroy_node()
             self.node = None
@@ -263,6 +269,10 @@ class FrictionNodeHarness:
     def __exit__(self, *exc):
         """Stop."""
         self.stop()
+
+    def _spin(self):
+        while self._spinning and self.context.ok():
+            self._executor.spin_once(timeout_sec=0.05)
 
     def add_node(self, node):
         """Spin another node (your controller) on the harness's executor."""
@@ -286,7 +296,7 @@ class FrictionNodeHarness:
 
     @property
     def profiles(self):
-        """Return the Collector of feedforward profiles (``friction/feedforward_profile``)."""
+        """Return the Collector of ``friction/feedforward_profile`` (FeedforwardProfile)."""
         return self.collect(PROFILE_TOPIC, PROFILE_TYPE)
 
     def diagnostics_values(self):
