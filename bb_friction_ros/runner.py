@@ -269,7 +269,7 @@ def build_runner(config_path, model_rate_hz):
     terms = None
     raw = load_yaml(config_path)
     if isinstance(raw, dict) and raw.get("empirical_terms"):
-        from bb_friction_ros.discrepancy.terms import load_terms
+        from bb_friction_ros.empirical_terms import load_terms
         terms = load_terms(raw["empirical_terms"])
     cfg = load_ball_screw(config_path)
     runner = ModelRunner(WholeScrew(cfg), model_rate_hz, terms)

@@ -20,7 +20,7 @@ import numpy as np
 
 from bb_friction_ros.bags import Event, measured_torque_at, read_events, Topics
 from bb_friction_ros.config import bundled_config, ConfigError, load_yaml
-from bb_friction_ros.discrepancy.terms import load_terms
+from bb_friction_ros.empirical_terms import load_terms
 from bb_friction_ros.replay import ReplaySettings, run_events
 from bb_friction_ros.runner import build_runner, InputAssembler
 

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from bb_friction_ros.discrepancy.terms import LIBRARY
+from bb_friction_ros.empirical_terms import LIBRARY
 
 FIGURES = ("residual_where.png", "heldout_before_after.png", "time_series.png")
 

@@ -8,7 +8,7 @@ out-of-range value is refused with the dotted key, like every other config of th
 import dataclasses
 
 from bb_friction_ros.config import field, from_mapping, load_yaml
-from bb_friction_ros.discrepancy.terms import MAX_LEAD_HARMONICS
+from bb_friction_ros.empirical_terms import MAX_LEAD_HARMONICS
 
 
 @dataclasses.dataclass(frozen=True)

@@ -22,7 +22,7 @@ import numpy as np
 from bb_friction_ros.config import bundled_config
 from bb_friction_ros.demo import DemoRecording, make_demo_events
 from bb_friction_ros.discrepancy.data import predict_events, Recording, run_times
-from bb_friction_ros.discrepancy.terms import make_term, TermSet
+from bb_friction_ros.empirical_terms import make_term, TermSet
 from bb_friction_ros.replay import ReplaySettings
 
 # One cycle of nut speeds [rev/s]: slow (Stribeck region), fast, medium, fastest.

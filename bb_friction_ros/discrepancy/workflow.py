@@ -27,7 +27,7 @@ import numpy as np
 
 from bb_friction_ros.discrepancy import regimes
 from bb_friction_ros.discrepancy.selection import candidates, select
-from bb_friction_ros.discrepancy.terms import Inputs, TermSet
+from bb_friction_ros.empirical_terms import Inputs, TermSet
 
 
 class InsufficientData(ValueError):
@@ -40,7 +40,7 @@ class InsufficientData(ValueError):
 
 
 def inputs_of(rec, mask=None):
-    """Return the terms.Inputs of a recording (optionally of the samples in ``mask``)."""
+    """Return the empirical_terms.Inputs of a recording (optionally of the samples in ``mask``)."""
     sel = slice(None) if mask is None else mask
     return Inputs.of(rec.t_run_s[sel], rec.nut_angle_rad[sel], rec.nut_velocity_rad_s[sel],
                      rec.axial_load_n[sel])
@@ -235,7 +235,7 @@ def write_augmented(path, config_path, terms):
     """
     import yaml
     from bb_friction_ros.config import load_yaml
-    from bb_friction_ros.discrepancy.terms import load_terms
+    from bb_friction_ros.empirical_terms import load_terms
     raw = load_yaml(config_path)
     base = raw.get("ball_screw", {k: v for k, v in raw.items() if k != "empirical_terms"})
     existing = load_terms(raw.get("empirical_terms")).to_list()
