@@ -183,7 +183,7 @@ def _run_make_demo_bag(args):
 
 def _demo_events(recording=None):
     from bb_friction_ros.config import bundled_config
-    from bb_friction_ros.demo import load_demo_recording, make_demo_events
+    from bb_friction_ros.trajectories import load_demo_recording, make_demo_events
     from bb_friction_ros.replay import ReplaySettings, run_events
     from bb_friction_ros.runner import build_runner, InputAssembler
     cfg = load_demo_recording(recording or bundled_config("demo_recording.yaml"))

@@ -21,6 +21,9 @@ import time
 
 import numpy as np
 
+from bb_friction_ros.ball_screw.whole_screw import WholeScrew
+from bb_friction_ros.model_file import load_model_file
+
 
 # Stamps are compared as float seconds: at epoch times (~1.7e9 s) their resolution is ~0.24 us,
 # so five 2 ms intervals may sum to 9.9999998 ms.  Without this slack a 100 Hz model stepped
@@ -131,7 +134,7 @@ class ModelRunner:
         """
         Wrap ``screw``; it steps at most once per 1/model_rate_hz of input time.
 
-        ``terms`` (a discrepancy TermSet, optional) adds fitted empirical torque, evaluated
+        ``terms`` (an empirical_terms.TermSet, optional) adds fitted empirical torque, evaluated
         at every sample's own inputs; its time is the stamp since the run's first sample.
         """
         if not model_rate_hz > 0:
@@ -258,21 +261,13 @@ class InputAssembler:
 
 def build_runner(config_path, model_rate_hz):
     """
-    Build a ModelRunner around the whole-screw model of a ball-screw YAML config.
+    Build a ModelRunner around the whole-screw model of a model file.
 
-    A top-level ``empirical_terms`` list in the same file (``augmented.yaml`` of the
-    discrepancy workflow) adds its fitted terms to every prediction.
+    Its ``empirical_terms`` (``augmented.yaml`` of the discrepancy workflow) add their fitted
+    torque to every prediction.
     """
-    from bb_friction_ros.ball_screw.parameters import load_ball_screw
-    from bb_friction_ros.ball_screw.whole_screw import WholeScrew
-    from bb_friction_ros.config import load_yaml
-    terms = None
-    raw = load_yaml(config_path)
-    if isinstance(raw, dict) and raw.get("empirical_terms"):
-        from bb_friction_ros.empirical_terms import load_terms
-        terms = load_terms(raw["empirical_terms"])
-    cfg = load_ball_screw(config_path)
-    runner = ModelRunner(WholeScrew(cfg), model_rate_hz, terms)
+    cfg, terms = load_model_file(config_path)
+    runner = ModelRunner(WholeScrew(cfg), model_rate_hz, terms if len(terms) else None)
     runner.warm_up(cfg.operation.axial_load_n, cfg.operation.nut_speed_rad_s)
     return runner
 

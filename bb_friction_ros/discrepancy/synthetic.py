@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from bb_friction_ros.config import bundled_config
-from bb_friction_ros.demo import DemoRecording, make_demo_events
+from bb_friction_ros.trajectories import DemoRecording, make_demo_events
 from bb_friction_ros.discrepancy.data import predict_events, Recording, run_times
 from bb_friction_ros.empirical_terms import make_term, TermSet
 from bb_friction_ros.replay import ReplaySettings
@@ -58,7 +58,8 @@ def _cache_key(cfg, config_path, model_rate_hz):
     h.update(Path(config_path).read_bytes())
     h.update(repr(float(model_rate_hz)).encode())
     root = Path(__file__).resolve().parent.parent
-    for pattern in ("ball_screw/*.py", "contact/*.py", "runner.py", "replay.py", "demo.py"):
+    for pattern in ("ball_screw/*.py", "contact/*.py", "runner.py", "replay.py",
+                    "trajectories.py"):
         for p in sorted(root.glob(pattern)):
             h.update(p.read_bytes())
     return h.hexdigest()[:20]
