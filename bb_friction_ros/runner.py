@@ -116,8 +116,10 @@ class RunnerStats:
     nonconverged_steps: int = 0
     skipped_steps: int = 0
     resets: int = 0
-    rejected: Counter = field(default_factory=Counter)
+    rejected: Counter = field(default_factory=Counter)   # by reason, inputs of both topics
+    rejected_nut_state: int = 0     # nut-state samples never answered (in ``rejected`` too)
     last_step_wall_s: float = 0.0
+    last_error: str = ""            # of the last model step that raised
 
 
 class ModelRunner:
@@ -167,9 +169,10 @@ class ModelRunner:
         self.screw.step(0.0, nut_velocity_rad_s, axial_load_n, 0.0)
         self.reset()
 
-    def reject(self, reason):
-        """Count an input rejected before it reached the runner."""
+    def reject(self, reason, nut_state=False):
+        """Count an input rejected before it reached the runner (``nut_state``: a sample)."""
         self.stats.rejected[reason] += 1
+        self.stats.rejected_nut_state += bool(nut_state)
 
     def process(self, sample, allow_step=True):
         """
@@ -178,7 +181,20 @@ class ModelRunner:
         With ``allow_step=False`` (the live node catching up on a backlog: only the newest
         input may step the model) the sample is answered from the current state, and a
         step it would have triggered is counted in ``stats.skipped_steps``.
+
+        A model step that raises must stop neither the node nor replay, and both must then
+        agree: the sample gets no prediction (None), it is counted as rejected
+        ``model_error`` (message in ``stats.last_error``) and the state is reset.
         """
+        try:
+            return self._process(sample, allow_step)
+        except Exception as exc:   # any failure of the physics: counted, never fatal
+            self.reject("model_error", nut_state=True)
+            self.stats.last_error = repr(exc)
+            self.reset()
+            return None
+
+    def _process(self, sample, allow_step):
         if self._last_stamp is not None and sample.stamp_s < self._last_stamp:
             # A bag loop or a restarted source: the balls' history no longer applies.
             self.stats.resets += 1

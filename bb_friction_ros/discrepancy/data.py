@@ -22,7 +22,8 @@ from bb_friction_ros.bags import Event, measured_torque_at, read_events, Topics
 from bb_friction_ros.config import bundled_config, ConfigError
 from bb_friction_ros.empirical_terms import Inputs
 from bb_friction_ros.model_file import load_model_file
-from bb_friction_ros.replay import ReplaySettings, run_events
+from bb_friction_ros.node_parameters import NodeParameters
+from bb_friction_ros.replay import run_events
 from bb_friction_ros.runner import build_runner, InputAssembler
 
 CSV_REQUIRED = ("t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n",
@@ -98,7 +99,7 @@ def _from_predictions(preds, measured_nm, config_path, info):
                      np.array([p.converged for p in preds], dtype=bool), info)
 
 
-def load_bag(path, config_path, replay_settings=ReplaySettings(), topics=Topics(),
+def load_bag(path, config_path, replay_settings=NodeParameters(), topics=Topics(),
              progress=False):
     """Read a rosbag2, predict through the replay path, align the measured torque."""
     try:
@@ -156,7 +157,7 @@ def csv_events(cols, nut_joint):
     return events
 
 
-def load_csv(path, config_path, replay_settings=ReplaySettings(), recompute=False,
+def load_csv(path, config_path, replay_settings=NodeParameters(), recompute=False,
              progress=False):
     """Read a CSV recording; reuse its ``torque_pred_nm`` unless ``recompute`` (see module)."""
     cols = _read_csv_columns(path)
@@ -185,7 +186,7 @@ def load_csv(path, config_path, replay_settings=ReplaySettings(), recompute=Fals
     return _from_predictions(preds, cols["torque_meas_nm"], config_path, info)
 
 
-def load_recording(path, config_path=None, replay_settings=ReplaySettings(), topics=Topics(),
+def load_recording(path, config_path=None, replay_settings=NodeParameters(), topics=Topics(),
                    recompute=False, progress=False):
     """Load a rosbag2 directory or a ``.csv`` file (see module docstring)."""
     path = Path(path)

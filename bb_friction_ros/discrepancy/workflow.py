@@ -249,10 +249,10 @@ def run_discrepancy(input_path, out, config=None, settings=None, replay_settings
     from bb_friction_ros.discrepancy.data import load_recording
     from bb_friction_ros.discrepancy.report import write_report, write_insufficient_report
     from bb_friction_ros.discrepancy.settings import DiscrepancySettings
-    from bb_friction_ros.replay import ReplaySettings
+    from bb_friction_ros.node_parameters import NodeParameters
     settings = settings or DiscrepancySettings()
     config = Path(config) if config else bundled_config("ball_screw.yaml")
-    rec = load_recording(input_path, config, replay_settings or ReplaySettings(),
+    rec = load_recording(input_path, config, replay_settings or NodeParameters(),
                          topics or Topics(), recompute=recompute, progress=progress)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
