@@ -36,6 +36,7 @@ from bb_friction_ros.config import bundled_config, ConfigError
 from bb_friction_ros.node_parameters import (MODEL_PARAMETERS, NODE_NAME, node_parameters,
                                              NodeParameters, ros_type, RUNTIME)
 from bb_friction_ros.runner import build_runner, InputAssembler, InputError
+
 GIL_SWITCH_INTERVAL_S = 2.5e-4
 
 
