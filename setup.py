@@ -29,6 +29,6 @@ setup(
             'friction_node = bb_friction_ros.node:main',
         ],
         # the friction_node fixture for launch-free tests (bb_friction_ros/testing.py)
-        'pytest11': ['bb_friction_ros = bb_friction_ros.pytest_plugin'],
+        'pytest11': ['bb_friction_ros = bb_friction_ros.testing'],
     },
 )

@@ -11,7 +11,6 @@ PlotJuggler or ``ros2 bag play``.
 
 from array import array
 import csv
-from dataclasses import dataclass
 import json
 import math
 from pathlib import Path
@@ -23,7 +22,8 @@ import numpy as np
 
 from bb_friction_ros.bags import (BagError, BagInput, BagWriter, friction_typestore,
                                   MeasuredAligner, stamp_ns, Topics)
-from bb_friction_ros.config import bundled_config, load_yaml
+from bb_friction_ros.config import bundled_config
+from bb_friction_ros.node_parameters import NodeParameters
 from bb_friction_ros.runner import build_runner, InputAssembler, InputError
 
 CSV_COLUMNS = ["t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n", "torque_pred_nm",
@@ -39,26 +39,6 @@ class NothingAccepted(BagError):
     """A replay in which no nut_state sample was accepted (the message says why)."""
 
 
-@dataclass(frozen=True)
-class ReplaySettings:
-    """The node parameters that shape predictions (same names and defaults as the node)."""
-
-    nut_joint: str = "nut_joint"
-    model_rate_hz: float = 100.0
-    max_axial_load_n: float = 1.0e5
-
-    @classmethod
-    def from_params_file(cls, path):
-        """Read ``friction_node: ros__parameters:`` of a ROS params file (others ignored)."""
-        data = load_yaml(path)
-        params = {}
-        for key, section in data.items():
-            if key.lstrip("/").endswith("friction_node") and isinstance(section, dict):
-                params = section.get("ros__parameters", {})
-        names = {"nut_joint", "model_rate_hz", "max_axial_load_n"}
-        return cls(**{k: v for k, v in params.items() if k in names}), params.get("config_file")
-
-
 def feed_event(ev, runner, assembler):
     """Feed one event; return its Prediction, or None (a load, a measurement, a rejection)."""
     try:
@@ -68,12 +48,17 @@ def feed_event(ev, runner, assembler):
             sample = assembler.on_nut_state(ev.stamp_s, ev.names, ev.positions, ev.velocities)
             return runner.process(sample)
     except InputError as err:
-        runner.reject(err.reason)
+        runner.reject(err.reason, nut_state=ev.kind == "nut_state")
     return None
 
 
 def run_events(events, runner, assembler, progress=False):
-    """Feed events in order; return the predictions (rejections counted in runner.stats)."""
+    """
+    Feed events in order; return the predictions.
+
+    Rejected inputs are counted in ``runner.stats`` (``rejected`` by reason), as the node
+    counts them.
+    """
     iterator = events
     if progress:
         from tqdm import tqdm
@@ -257,10 +242,14 @@ def csv_header(measured, empirical):
         (["torque_empirical_nm"] if empirical else []) + ["converged"]
 
 
-def replay(bag, out, config=None, settings=ReplaySettings(), topics=Topics(), progress=True,
+def replay(bag, out, config=None, settings=NodeParameters(), topics=Topics(), progress=True,
            write_bag=True):
     """
     Replay ``bag`` into directory ``out``; return the summary dict.
+
+    ``settings``: the node's parameters (``nut_joint``, ``model_rate_hz`` and
+    ``max_axial_load_n`` shape the predictions); ``config`` is the model file (default:
+    ``settings.config_file``, else the bundled ``config/ball_screw.yaml``).
 
     Raises FileNotFoundError or BagError (a ValueError) naming the file for a bag that
     cannot be used, and NothingAccepted when no nut_state sample was accepted (the summary
@@ -269,8 +258,8 @@ def replay(bag, out, config=None, settings=ReplaySettings(), topics=Topics(), pr
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     with BagInput(bag, topics) as src:
-        runner = build_runner(config or bundled_config("ball_screw.yaml"),
-                              settings.model_rate_hz)
+        runner = build_runner(config or settings.config_file
+                              or bundled_config("ball_screw.yaml"), settings.model_rate_hz)
         assembler = InputAssembler(settings.nut_joint, settings.max_axial_load_n)
         # metadata's count decides only whether the column exists: an empty measured topic
         # would hold every row back waiting for a measurement

@@ -11,9 +11,14 @@ For controller developers who test their code against this node without ``launch
         node.publish_nut_state(0.0, 6.0, stamp_s=0.001)
         torque = node.feedforward.wait_for(1)[0].data[0]
 
-With pytest, the ``friction_node`` fixture (``bb_friction_ros.pytest_plugin``, registered
-through the ``pytest11`` entry point when bb_friction_ros is installed) yields a started
-harness; set its arguments with ``@pytest.mark.friction_node(parameters={...}, ...)``.
+With pytest, the ``friction_node`` fixture (this module is a pytest plugin, registered through
+the ``pytest11`` entry point when bb_friction_ros is installed) yields a started harness; set
+its arguments with ``@pytest.mark.friction_node(parameters={...}, ...)``::
+
+    @pytest.mark.friction_node(parameters={"model_rate_hz": 200.0})
+    def test_my_controller(friction_node):
+        friction_node.publish_axial_load(1500.0, stamp_s=0.0)
+        ...
 
 Isolation: the harness's context uses its own ``ROS_DOMAIN_ID`` (``domain_id``, by default
 derived from the process id, never the user's domain) and ``ROS_AUTOMATIC_DISCOVERY_RANGE``
@@ -30,6 +35,8 @@ import shutil
 import sys
 import threading
 import time
+
+import pytest
 
 DEFAULT_TIMEOUT_S = 10.0
 PROFILE_TOPIC = "friction/feedforward_profile"
@@ -465,3 +472,21 @@ def play_through_node(events, parameters=None, context=None, speed=1.0,
     """Play ``events`` through a fresh in-process friction_node (see FrictionNodeHarness.play)."""
     with FrictionNodeHarness(parameters, context=context) as harness:
         return harness.play(events, speed=speed, lockstep=lockstep, settle_s=settle_s)
+
+
+# The pytest plugin (entry point ``pytest11``): any test suite in the environment may use it.
+
+def pytest_configure(config):
+    """Register the ``friction_node`` marker."""
+    config.addinivalue_line(
+        "markers", "friction_node(parameters=None, params_file=None, **kwargs): arguments "
+        "of the friction_node fixture (bb_friction_ros.testing.FrictionNodeHarness)")
+
+
+@pytest.fixture
+def friction_node(request):
+    """Yield a started ``FrictionNodeHarness``, its arguments from the ``friction_node`` mark."""
+    marker = request.node.get_closest_marker("friction_node")
+    kwargs = dict(marker.kwargs) if marker else {}
+    with FrictionNodeHarness(**kwargs) as harness:
+        yield harness

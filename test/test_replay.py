@@ -201,8 +201,9 @@ def test_replay_with_a_misnamed_joint_exits_2_saying_why_and_how(tmp_path, capsy
     ("no messages", [], None, "/nut_state has no messages"),
     ("only loads", [Event("axial_load", 0.001 * k, value=1500.0) for k in range(5)], None,
      "/nut_state has no messages"),
-    ("negative max_axial_load_n", _states(),
-     "friction_node:\n  ros__parameters:\n    max_axial_load_n: -5.0\n", "absurd_load 1"),
+    ("every load above max_axial_load_n", _states(),
+     "friction_node:\n  ros__parameters:\n    max_axial_load_n: 1000.0\n",
+     "loads exceed max_axial_load_n = 1000 N"),
 ])
 def test_replay_that_accepts_nothing_exits_2(tmp_path, capsys, case, events, params, reason):
     """Issue 13 finding 18: every case of 'nothing accepted' is an error with the reason."""
@@ -210,6 +211,14 @@ def test_replay_that_accepts_nothing_exits_2(tmp_path, capsys, case, events, par
     err = capsys.readouterr().err
     assert "no nut_state sample was accepted" in err and reason in err
     assert "Traceback" not in err
+
+
+def test_replay_refuses_a_negative_max_axial_load_as_the_node_does(tmp_path, capsys):
+    """Issue 13 finding 18: a negative max_axial_load_n is refused up front, by name."""
+    params = "friction_node:\n  ros__parameters:\n    max_axial_load_n: -5.0\n"
+    assert _run(tmp_path, _states(), params=params) == 2
+    err = capsys.readouterr().err
+    assert "friction_node.max_axial_load_n: must be >= 1.0 N" in err and "Traceback" not in err
 
 
 def test_namespaced_topics_are_used_only_when_named(tmp_path, capsys):
