@@ -323,3 +323,48 @@ def test_looping_bag_aligns_measurement_within_each_run(tmp_path):
     rows = list(csv.DictReader(open(tmp_path / "out" / "prediction.csv")))
     assert summary["resets"] == 1 and len(rows) == 20
     assert [float(r["torque_meas_nm"]) for r in rows] == [0.1] * 10 + [0.3] * 10
+
+
+def test_replay_streams_in_bounded_memory(tmp_path, monkeypatch):
+    """
+    Issue 12 / 13 finding 26: replay holds no message or prediction after it is answered.
+
+    Near the end of a 3000-sample bag the Python objects alive are counted: a replay that
+    reads the bag into a list first, or keeps its predictions (as replay once did, ~1 kB a
+    sample: 1.2 GB for a 10-minute 1 kHz bag), holds thousands.  The plotted series go to a
+    temporary file.  bench/bench_replay.py measures the process's peak RSS on that bag.
+    """
+    import gc
+    from bb_friction_ros.bags import BagInput
+    from bb_friction_ros.replay import replay, _Series
+    from bb_friction_ros.runner import Prediction
+    n = 3000
+    events = [Event("axial_load", 0.0, value=1500.0)]
+    events += [Event("nut_state", 0.001 * (k + 1), ("nut_joint",), (0.006 * k,), (6.0,))
+               for k in range(n)]
+    write_events(tmp_path / "bag", with_measurement(events, [0.2] * n), storage="mcap")
+    del events
+    alive = {}
+    messages = BagInput.messages
+
+    def count(kind):     # other tests' parameters hold a few Events too
+        gc.collect()
+        return sum(isinstance(o, kind) for o in gc.get_objects())
+
+    before = {"events": count(Event), "predictions": count(Prediction)}
+
+    def counting(self, *args, **kwargs):
+        for k, item in enumerate(messages(self, *args, **kwargs)):
+            if k == 2 * n - 10:              # nut_state and measured_torque: near the end
+                alive["events"] = count(Event) - before["events"]
+                alive["predictions"] = count(Prediction) - before["predictions"]
+                alive["series_rows_in_memory"] = sum(
+                    len(o._buf) // len(o.COLUMNS) for o in gc.get_objects()
+                    if isinstance(o, _Series))
+            yield item
+
+    monkeypatch.setattr(BagInput, "messages", counting)
+    summary = replay(tmp_path / "bag", tmp_path / "out", progress=False)
+    assert summary["samples"] == n and alive, alive
+    assert alive["events"] < 20 and alive["predictions"] < 20, alive
+    assert alive["series_rows_in_memory"] <= _Series.BUFFER_ROWS, alive
