@@ -363,7 +363,7 @@ def nothing_accepted_message(src, stats, settings):
     """Say why no sample was accepted: reasons with counts, what the bag holds, the fix."""
     nut = src.topics.absolute("nut_state")
     load = src.topics.absolute("axial_load")
-    lines = [f"{src.path}: no nut_state sample was accepted, so there is nothing to replay."]
+    lines = [f"{src.path}: no nut_state sample was accepted, so there is nothing to predict."]
     rejected = ", ".join(f"{r} {n}" for r, n in stats.rejected.most_common()) or "none"
     lines.append(f"  rejected (reason count): {rejected}")
     lines.append("  messages read: " + (", ".join(f"{t} {n}" for t, n in

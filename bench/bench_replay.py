@@ -4,9 +4,11 @@ Replay of a long recording: peak memory (RSS) and speed, against a bare read of 
 Issue 12 / 13 finding 26: a 10-minute, 1 kHz mcap bag must replay in bounded memory (target
 <= 300 MB peak RSS).  The bag (nut_state and measured_torque at 1 kHz, axial_load at 100 Hz,
 reversing nut motion) is generated once into ``--workdir`` (streamed, never held in memory).
-Each figure is the peak RSS of a child process (``wait4``), and the baseline is measured in
-the same run: a child that only reads every message of the bag with rosbags, the floor any
-replay pays.  ``--bb-friction PATH`` measures another installation (e.g. an older checkout's
+Each figure is the peak RSS of a child process (``wait4``), and two baselines are measured in
+the same run: a child that only reads every message of the bag with rosbags (the floor any
+reader pays), and the same replay of a 6-second bag from the same generator (replay's fixed
+cost: numpy, scipy, numba, matplotlib, the compiled model; about 270 MB here).  The long
+replay's excess over the short one is what the recording's length costs.  ``--bb-friction PATH`` measures another installation (e.g. an older checkout's
 ``.venv/bin/bb-friction``) on the same bag.
 
 Usage: .venv/bin/python bench/bench_replay.py [--minutes 10] [--workdir out/bench_replay]
@@ -48,6 +50,18 @@ def recording(minutes, state_hz=1000.0, load_hz=100.0):
         yield Event("measured_torque", t, value=0.2 * math.copysign(1.0, w) + 0.004 * w)
 
 
+def bench_bag(work, minutes):
+    """Return the bench bag of ``minutes``, generated into ``work`` the first time."""
+    bag = work / f"bag_{minutes:g}min"
+    if not bag.exists():
+        from bb_friction_ros.bags import write_events
+        work.mkdir(parents=True, exist_ok=True)
+        t0 = time.perf_counter()
+        write_events(bag, recording(minutes), storage="mcap")
+        print(f"generated {bag} in {time.perf_counter() - t0:.0f} s")
+    return bag
+
+
 def child(cmd):
     """Run ``cmd``; return (wall s, peak RSS MiB, stdout) of that process alone (wait4)."""
     import tempfile
@@ -72,16 +86,12 @@ def main():
     ap.add_argument("--minutes", type=float, default=10.0)
     ap.add_argument("--workdir", default="out/bench_replay")
     ap.add_argument("--bb-friction", default=str(Path(sys.executable).parent / "bb-friction"))
+    ap.add_argument("--short-minutes", type=float, default=0.1,
+                    help="length of the short bag whose replay gives the fixed cost")
     ap.add_argument("--no-bag", action="store_true", help="replay with --no-bag")
     args = ap.parse_args()
     work = Path(args.workdir)
-    bag = work / f"bag_{args.minutes:g}min"
-    if not bag.exists():
-        from bb_friction_ros.bags import write_events
-        work.mkdir(parents=True, exist_ok=True)
-        t0 = time.perf_counter()
-        write_events(bag, recording(args.minutes), storage="mcap")
-        print(f"generated {bag} in {time.perf_counter() - t0:.0f} s")
+    bag, short = (bench_bag(work, m) for m in (args.minutes, args.short_minutes))
     size_mb = sum(p.stat().st_size for p in bag.iterdir()) / 1e6
     print(f"bag: {bag} ({size_mb:.0f} MB, {args.minutes:g} min at 1 kHz); load: "
           f"{os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} {os.getloadavg()[2]:.2f}")
@@ -90,13 +100,18 @@ def main():
     wall_r, rss_r, n = child([sys.executable, "-c", READ_ONLY, str(bag)])
     print(f"read only (rosbags, every message): {rss_r:7.0f} MB peak RSS, {wall_r:6.1f} s, "
           f"{n} messages")
-    cmd = [args.bb_friction, "replay", str(bag), "--out", str(work / "replay"), "--no-progress"]
-    if args.no_bag:
-        cmd.append("--no-bag")
-    wall, rss, out = child(cmd)
-    print(f"replay ({args.bb_friction}{' --no-bag' if args.no_bag else ''}): {rss:7.0f} MB "
-          f"peak RSS, {wall:6.1f} s, {args.minutes * 60 / wall:.1f}x real time")
-    print(f"replay / read-only: RSS {rss / rss_r:.2f}x, wall {wall / wall_r:.1f}x; "
+    flags = ["--no-progress"] + (["--no-bag"] if args.no_bag else [])
+    wall_s, rss_s, _ = child([args.bb_friction, "replay", str(short), "--out",
+                              str(work / "replay_short"), *flags])
+    print(f"replay of {args.short_minutes * 60:g} s (fixed cost): {rss_s:7.0f} MB peak RSS, "
+          f"{wall_s:6.1f} s")
+    wall, rss, out = child([args.bb_friction, "replay", str(bag), "--out",
+                            str(work / "replay"), *flags])
+    print(f"replay of {args.minutes:g} min ({args.bb_friction}"
+          f"{' --no-bag' if args.no_bag else ''}): {rss:7.0f} MB peak RSS, {wall:6.1f} s, "
+          f"{args.minutes * 60 / wall:.1f}x real time")
+    print(f"replay {args.minutes:g} min - replay {args.short_minutes * 60:g} s: "
+          f"{rss - rss_s:+.0f} MB; replay / read-only wall {wall / wall_r:.1f}x; "
           f"target <= 300 MB: {'met' if rss <= 300 else 'NOT met'}")
     print(f"summary: {out.splitlines()[0] if out else '-'}")
     print(f"load after: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")

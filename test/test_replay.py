@@ -247,6 +247,17 @@ def test_discrepancy_on_namespaced_topics_is_a_clear_error(tmp_path, capsys):
     assert "--nut-state-topic /robot/nut_state" in capsys.readouterr().err
 
 
+def test_discrepancy_that_accepts_nothing_says_why_and_how(tmp_path, capsys):
+    """Issue 12: discrepancy names the reasons, the bag's topics and joints, and the fix."""
+    write_events(tmp_path / "bag", with_measurement(_states(joint="nut"), [0.2] * 20))
+    assert main(["discrepancy", str(tmp_path / "bag"), "--out", str(tmp_path / "d"),
+                 "--no-progress", "--no-plots"]) == 2
+    err = capsys.readouterr().err
+    for needle in ("no nut_state sample was accepted", "wrong_joint 20",
+                   "/nut_state (sensor_msgs/msg/JointState)", "['nut']", "--nut-joint nut"):
+        assert needle in err, err
+
+
 def _bag_with_types(path, types):
     """A bag whose topics have the given types (one message each where we can build one)."""
     from bb_friction_ros.bags import BagWriter, _header, _wrench

@@ -18,12 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
-from bb_friction_ros.bags import Event, measured_torque_at, read_events, Topics
+from bb_friction_ros.bags import BagInput, Event, measured_torque_at, Topics
 from bb_friction_ros.config import bundled_config, ConfigError
 from bb_friction_ros.empirical_terms import Inputs
 from bb_friction_ros.model_file import load_model_file
 from bb_friction_ros.node_parameters import NodeParameters
-from bb_friction_ros.replay import run_events
+from bb_friction_ros.replay import nothing_accepted_message, run_events
 from bb_friction_ros.runner import build_runner, InputAssembler
 
 CSV_REQUIRED = ("t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n",
@@ -103,18 +103,19 @@ def load_bag(path, config_path, replay_settings=NodeParameters(), topics=Topics(
              progress=False):
     """Read a rosbag2, predict through the replay path, align the measured torque."""
     try:
-        events, counts = read_events(path, topics)
+        with BagInput(path, topics) as src:
+            events = [ev for _, _, _, ev in src.messages(all_topics=False)]
     except (FileNotFoundError, ValueError) as exc:
         raise InputProblem(str(exc)) from exc
+    counts = dict(src.counts)
     if measured_torque_at(events, []) is None:
         raise InputProblem(f"{path}: no measured torque: topic {topics.measured_torque!r} "
                            f"is missing or empty (topics in the bag: "
                            f"{', '.join(sorted(counts)) or 'none'}); the discrepancy needs "
                            "a measurement to compare with (--measured-topic)")
     preds, stats = predict_events(events, config_path, replay_settings, progress)
-    if not preds:
-        raise InputProblem(f"{path}: no usable nut_state sample (rejected: "
-                           f"{dict(stats.rejected) or 'none'})")
+    if not preds:      # the reasons, what the bag holds and the fix, as replay says them
+        raise InputProblem(nothing_accepted_message(src, stats, replay_settings))
     meas = measured_torque_at(events, [p.stamp_s for p in preds])   # as replay aligns it
     info = {"input": str(path), "format": "rosbag2", "prediction_source": "model (replay path)",
             "messages": counts, "rejected": dict(stats.rejected),
