@@ -40,12 +40,19 @@ def _screw_pair(args):
     op = cfg.operation
     res = solve_two_ball_module(ScrewModel(cfg), op.module_theta1_rad, op.module_theta2_rad,
                                 op.module_axial_load_n)
+    # An unconverged solve's last iterate is no result: its numbers are null (as ``linear``).
     out = {"f_b2b_n": res.f_b2b_n, "friction_increase": res.friction_increase,
            "torque_nm": res.torque_nm, "torque_no_b2b_nm": res.torque_no_b2b_nm,
-           "loss_w": res.loss_w, "converged": res.converged,
-           "solve_time_s": res.solve_time_s}
+           "loss_w": res.loss_w}
+    out = {k: float(v) if res.converged and math.isfinite(v) else None
+           for k, v in out.items()}
+    out.update(converged=bool(res.converged), solve_time_s=res.solve_time_s)
     if args.json:
-        print(json.dumps(out))
+        print(json.dumps(out, allow_nan=False))
+    elif not res.converged:
+        print(f"two-ball module: NOT CONVERGED at W = {op.module_axial_load_n:g} N, theta = "
+              f"{math.degrees(op.module_theta1_rad):g} / "
+              f"{math.degrees(op.module_theta2_rad):g} deg: no result", file=sys.stderr)
     else:
         print(f"two-ball module: theta = {math.degrees(op.module_theta1_rad):g} / "
               f"{math.degrees(op.module_theta2_rad):g} deg, W = {op.module_axial_load_n:g} N")
