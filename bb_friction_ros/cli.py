@@ -55,10 +55,12 @@ def _run_linear(args):
                               f"(-90, 90) deg, got {value}")
     case = LinearPairCase(cfg)
     run = case.numerical if args.model == "numerical" else case.analytical
-    res = run(math.radians(args.theta_deg), cfg.side_force_ratio,
-              math.radians(args.dbeta_tr_deg), math.radians(args.dbeta_tl_deg))
+    import numpy as np
+    with np.errstate(over="ignore", invalid="ignore"):   # an overflow is flagged in res
+        res = run(math.radians(args.theta_deg), cfg.side_force_ratio,
+                  math.radians(args.dbeta_tr_deg), math.radians(args.dbeta_tl_deg))
     if args.json:
-        print(json.dumps(res.as_json()))
+        print(json.dumps(res.as_json(), allow_nan=False))
     elif not res.converged:
         print("NOT CONVERGED: " + "; ".join(res.notes), file=sys.stderr)
     else:
