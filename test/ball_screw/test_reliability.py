@@ -77,3 +77,38 @@ def test_screw_pair_zero_load_is_zero_friction(capsys, load):
     assert out["converged"] is True
     assert out["f_b2b_n"] == out["torque_nm"] == out["loss_w"] == 0.0
     assert out["friction_increase"] == 0.0
+
+
+def test_screw_sim_steps_keeps_the_step_size(tmp_path, capsys):
+    """Finding 12: --steps N runs N steps of the configured size, as --help says."""
+    import csv
+    cfg = load_ball_screw(None)
+    dt = cfg.operation.duration_s / cfg.operation.n_steps
+    assert main(["screw-sim", "--out", str(tmp_path), "--steps", "2"]) == 0
+    with open(tmp_path / "timeseries.csv") as fh:
+        t = [float(r["t_s"]) for r in csv.DictReader(fh)]
+    assert t == pytest.approx([dt, 2 * dt], rel=1e-9)
+    capsys.readouterr()
+    with pytest.raises(SystemExit):
+        main(["screw-sim", "--help"])
+    assert "configured step size" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("spelling, value", [("module_theta1_rad", "0.01"),
+                                             ("module_theta1_deg", "0.5")])
+def test_screw_pair_flag_overrides_either_spelling(tmp_path, capsys, spelling, value):
+    """Finding 25: --theta1-deg with a file that sets theta1 in SI was 'given twice'."""
+    cfg = tmp_path / "pair.yaml"
+    cfg.write_text(f"ball_screw:\n  operation:\n    {spelling}: {value}\n"
+                   "    module_theta2_deg: 2\n")
+    rc, flagged = _pair(capsys, "--config", str(cfg), "--theta1-deg", "1")
+    assert rc == 0
+    rc, plain = _pair(capsys, "--theta1-deg", "1", "--theta2-deg", "2")
+    flagged.pop("solve_time_s"), plain.pop("solve_time_s")
+    assert flagged == plain
+
+
+def test_screw_pair_bad_flag_named(capsys):
+    """An out-of-range flag value is refused by the flag's name, exit 2."""
+    assert main(["screw-pair", "--theta1-deg", "20"]) == 2
+    assert "--theta1-deg 20" in capsys.readouterr().err
