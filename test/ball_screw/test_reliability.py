@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from bb_friction_ros.ball_screw.parameters import load_ball_screw
+from bb_friction_ros.model_file import load_ball_screw
 from bb_friction_ros.ball_screw.screw_model import ScrewModel
 from bb_friction_ros.cli import main
 
