@@ -94,7 +94,7 @@ def _unloaded_result(model, sign, axial_load_n, t0):
 
 
 def _failed_result(sign, t0):
-    """A non-converged module: NaN numbers (printed as null), ``converged = False``."""
+    """Return a non-converged module: NaN numbers (printed as null), ``converged = False``."""
     nan = float("nan")
     return ModuleResult(
         f_b2b_n=nan, friction_increase=nan, torque_nm=nan, torque_no_b2b_nm=nan, loss_w=nan,

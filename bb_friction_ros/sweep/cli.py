@@ -35,7 +35,7 @@ def _add_cluster_args(p):
 
 
 def _positive(kind):
-    """argparse type: a finite number > 0 of ``kind`` (a bad one is refused by its flag)."""
+    """Return an argparse type: a finite number > 0 of ``kind``, refused by its flag if not."""
     def parse(text):
         try:
             value = kind(text)
