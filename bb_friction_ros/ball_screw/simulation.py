@@ -59,11 +59,10 @@ def summarize(results, separation_rad):
 
 def plot_fig20(results, separation_rad, loop_rad, path):
     """Fig. 20: angular distance between neighbouring balls; B2B contact as black dots."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
     angle = np.degrees([r.nut_angle_rad for r in results])
-    fig, ax = plt.subplots(figsize=(8, 4.5))
+    fig = Figure(figsize=(8, 4.5))
+    ax = fig.subplots()
     dist = []
     touch = []
     for r in results:
@@ -84,16 +83,14 @@ def plot_fig20(results, separation_rad, loop_rad, path):
     ax.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
 
 
 def plot_fig21(results, path):
     """Fig. 21: total friction torque and its ball-groove and B2B parts."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
     angle = np.degrees([r.nut_angle_rad for r in results])
-    fig, ax = plt.subplots(figsize=(8, 4.5))
+    fig = Figure(figsize=(8, 4.5))
+    ax = fig.subplots()
     ax.plot(angle, [1e3 * r.torque_total_nm for r in results], "k", label="total")
     ax.plot(angle, [1e3 * r.torque_b2g_nm for r in results], "b", label="ball-groove")
     ax.plot(angle, [1e3 * r.torque_b2b_nm for r in results], "r", label="ball-to-ball")
@@ -103,7 +100,6 @@ def plot_fig21(results, path):
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
 
 
 def write_outputs(results, summary, separation_rad, loop_rad, out_dir):
