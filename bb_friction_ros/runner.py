@@ -273,7 +273,7 @@ def build_runner(config_path, model_rate_hz):
         terms = load_terms(raw["empirical_terms"])
     cfg = load_ball_screw(config_path)
     runner = ModelRunner(WholeScrew(cfg), model_rate_hz, terms)
-    runner.warm_up(cfg.operation.axial_load_n, cfg.operation.nut_speed_rad_s)
+    runner.warm_up(cfg.operation.axial_load_n, cfg.operation.nut_velocity_rad_s)
     return runner
 
 

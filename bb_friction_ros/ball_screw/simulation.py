@@ -28,7 +28,7 @@ def run_whole_screw(config, n_steps=None, screw=None):
     dt = op.duration_s / op.n_steps
     screw = WholeScrew(config) if screw is None else screw
     screw.reset(0.0)
-    return [screw.step(op.nut_speed_rad_s * k * dt, op.nut_speed_rad_s, op.axial_load_n, dt)
+    return [screw.step(op.nut_velocity_rad_s * k * dt, op.nut_velocity_rad_s, op.axial_load_n, dt)
             for k in range(1, steps + 1)], screw
 
 

@@ -161,11 +161,11 @@ class WholeScrew:
         return kernel.ring_pairs(self.azimuth, self.separation, self.loop,
                                  self.config.solver.gap_tolerance_rad, float(sign))
 
-    def _zero_result(self, omega_n, load_w, dt_s):
+    def _zero_result(self, omega_n, axial_load_n, dt_s):
         """No motion or no load: zero friction, state kept."""
         return StepResult(
             t_s=self.time, nut_angle_rad=self.nut_angle, nut_velocity_rad_s=omega_n,
-            axial_load_n=load_w, torque_total_nm=0.0, torque_b2g_nm=0.0, torque_b2b_nm=0.0,
+            axial_load_n=axial_load_n, torque_total_nm=0.0, torque_b2g_nm=0.0, torque_b2b_nm=0.0,
             drive_power_w=0.0, loss_w=0.0, converged=True, power_balance_error=0.0,
             azimuth_rad=self.track_azimuth(), theta_rad=self._centres(
                 self.track_azimuth())[0], omega_b_rad_s=self.ratio * omega_n,
@@ -180,18 +180,18 @@ class WholeScrew:
         self.azimuth = isotonic_ring_projection(self.azimuth + self.ratio * d_psi,
                                                 self.separation, self.loop)
         omega_n = float(nut_velocity_rad_s)
-        load_w = float(axial_load_n)
+        axial_load_n = float(axial_load_n)
         preload = self.model.preload_load() > 0.0
         if omega_n == 0.0 or (not preload
-                              and abs(load_w) <= self.config.solver.min_axial_load_n):
+                              and abs(axial_load_n) <= self.config.solver.min_axial_load_n):
             self._prev = None
-            return self._zero_result(omega_n, load_w, dt_s)
+            return self._zero_result(omega_n, axial_load_n, dt_s)
         sign = 1.0 if omega_n > 0.0 else -1.0
         phi = self.track_azimuth()
         theta, centres, shifts = self._centres(phi)
         pair_idx, rear, front = self._pairs(sign)
-        scale = self.model.force_scale(self.n, load_w)
-        load_sign = 1.0 if load_w >= 0.0 else -1.0
+        scale = self.model.force_scale(self.n, axial_load_n)
+        load_sign = 1.0 if axial_load_n >= 0.0 else -1.0
         sol = None
         prev = None
         iterations = 0
@@ -204,7 +204,7 @@ class WholeScrew:
                 # ball is predicted faster (the active-set loop corrects either guess).
                 faster = gx[rear, 2] * sign > gx[front, 2] * sign
                 active = (self._active[pair_idx] & (gf[pair_idx] > 0.0)) | faster
-                sol = self.model.solver.solve(gx, gu, centres, sign, load_w, scale, rear,
+                sol = self.model.solver.solve(gx, gu, centres, sign, axial_load_n, scale, rear,
                                               front, active, gf[pair_idx], budget)
                 iterations += sol.iterations
                 if sol.converged or sol.budget_exhausted:
@@ -212,15 +212,15 @@ class WholeScrew:
                     prev = (x, u, self._forces, d_psi)
                     break
         if sol is None or not (sol.converged or sol.budget_exhausted):
-            free = self.model.cold_solve(*shifts, sign, load_w)
+            free = self.model.cold_solve(*shifts, sign, axial_load_n)
             ratio = free.x[:, 2] * sign
-            sol = self.model.solver.solve(free.x, free.u, centres, sign, load_w, scale, rear,
+            sol = self.model.solver.solve(free.x, free.u, centres, sign, axial_load_n, scale, rear,
                                           front, ratio[rear] > ratio[front])
             sol.converged = sol.converged and free.converged
             iterations += sol.iterations
         sol.iterations = iterations
         self._prev = prev
-        return self._finish(sol, sign, omega_n, load_w, theta, phi, pair_idx, rear, front,
+        return self._finish(sol, sign, omega_n, axial_load_n, theta, phi, pair_idx, rear, front,
                             t0)
 
     def _guesses(self, d_psi):
@@ -243,10 +243,10 @@ class WholeScrew:
         out.append((x.copy(), u, self._forces))
         return out
 
-    def _finish(self, sol, sign, omega_n, load_w, theta, phi, pair_idx, rear, front, t0):
+    def _finish(self, sol, sign, omega_n, axial_load_n, theta, phi, pair_idx, rear, front, t0):
         """Store the state and build the StepResult."""
         b = self.model.ball
-        self._state = (sol.x, sol.u, sign, 1.0 if load_w >= 0.0 else -1.0)
+        self._state = (sol.x, sol.u, sign, 1.0 if axial_load_n >= 0.0 else -1.0)
         self.ratio = sol.x[:, 2] * sign
         self._active = np.zeros(self.n, dtype=bool)
         self._active[pair_idx] = sol.active
@@ -256,7 +256,7 @@ class WholeScrew:
         groove_loss = float(sol.terms["loss"].sum()) * abs_w
         b2b_loss = float(b.mu * np.dot(sol.forces, sol.b2b_speed)) * abs_w \
             if pair_idx.size else 0.0
-        torque = float(sol.terms["nut_torque"].sum()) - load_w * b.r_gear
+        torque = float(sol.terms["nut_torque"].sum()) - axial_load_n * b.r_gear
         loss = groove_loss + b2b_loss
         drive = omega_n * torque
         groups = []
@@ -275,7 +275,7 @@ class WholeScrew:
             groups.append((tuple(chain_ids), tuple(chain_f)))
         return StepResult(
             t_s=self.time, nut_angle_rad=self.nut_angle, nut_velocity_rad_s=omega_n,
-            axial_load_n=load_w, torque_total_nm=torque,
+            axial_load_n=axial_load_n, torque_total_nm=torque,
             torque_b2g_nm=groove_loss / omega_n, torque_b2b_nm=b2b_loss / omega_n,
             drive_power_w=drive, loss_w=loss, converged=bool(sol.converged),
             power_balance_error=abs(drive - loss) / max(loss, _TINY),

@@ -236,7 +236,7 @@ def run_screw_pair(cfg, params, options):
     from bb_friction_ros.ball_screw.module import solve_two_ball_module
     op = cfg.operation
     res = solve_two_ball_module(screw_model(cfg), op.module_theta1_rad, op.module_theta2_rad,
-                                op.module_axial_load_n, op.nut_speed_rad_s)
+                                op.module_axial_load_n, op.nut_velocity_rad_s)
     if not res.converged:
         return {}, NONCONVERGED, "two-ball module solve did not converge"
     out = {o.name: getattr(res, o.name) for o in SCREW_PAIR_OUTPUTS}

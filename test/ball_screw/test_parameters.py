@@ -39,3 +39,12 @@ def test_edge_units_converted():
                                      "geometry": {"ball_oversize_um": 2.0}})
     assert cfg.errors.theta_amplitude_rad == pytest.approx(math.radians(1.5))
     assert cfg.geometry.ball_oversize_m == pytest.approx(2e-6)
+
+
+def test_nut_velocity_is_signed_and_so_named():
+    # omega_N is signed (its sign sets the direction of friction): *_velocity_*, as in the
+    # node, the runner and the bags; the old key *_speed_* is refused, naming it.
+    cfg = load_ball_screw(overrides={"operation": {"nut_velocity_rad_s": -3.0}})
+    assert cfg.operation.nut_velocity_rad_s == -3.0
+    with pytest.raises(ConfigError, match=r"ball_screw\.operation\.nut_speed_rad_s"):
+        load_ball_screw(overrides={"operation": {"nut_speed_rad_s": 3.0}})
