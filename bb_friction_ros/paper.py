@@ -22,6 +22,7 @@ References
 ----------
 Lin, B., Duan, M., Okwudire, C. E., 2019, ASME J. Tribol. 141(8), 081501:
 Tables 1-5, Figs. 5, 8-10, 19-21, Eqs. (15), (30), (33), (56), Secs. 2.3.1, 2.4, 3.3, 3.4.
+
 """
 
 import dataclasses
@@ -54,6 +55,7 @@ class PaperValue:
         False when the value is reported but not asserted (a known gap or a timing).
     reason : str
         Why this tolerance, or why it is not a target.
+
     """
 
     key: str

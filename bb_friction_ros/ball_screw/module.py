@@ -58,6 +58,7 @@ def solve_two_ball_module(model, theta1_rad, theta2_rad, axial_load_n, nut_veloc
         F_B2B [N], friction increase (fraction), friction torques [N m], losses [W] at
         omega_N, free orbit ratios omega_B / omega_N, contact loads [N], convergence and the
         relative power balance error |omega_N T_f - losses| / losses.
+
     """
     t0 = time.perf_counter()
     cfg = model.config
