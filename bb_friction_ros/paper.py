@@ -20,7 +20,7 @@ This is a layer-1 data module: it imports nothing of the package.
 
 References
 ----------
-Lin, B., Duan, M., Okwudire, C. E., 2019, ASME J. Tribol. 141(8), 081501:
+Lin, B., Duan, M., Okwudire, C. E., 2019, ASME J. Tribol. 141(8), DOI 10.1115/1.4043630:
 Tables 1-5, Figs. 5, 8-10, 19-21, Eqs. (15), (30), (33), (56), Secs. 2.3.1, 2.4, 3.3, 3.4.
 
 """

@@ -23,6 +23,14 @@ changes of the solver, not of the model:
 
 Derivatives with respect to u: u enters only through the nut arcs' z_3 shift, so each
 derivative in u is -g cos(alpha) times the derivative in zeta.
+
+References
+----------
+.. [1] Lin, B., Duan, M., Okwudire, C. E., 2019, "Analytical and Low-Order Numerical Modeling
+   of Ball-to-Ball Contact Friction in Linear Ball Bearings and Ball Screws", ASME J. Tribol.
+   141(8), DOI 10.1115/1.4043630.
+   Eqs. (54)-(61) (compiled form of ``solver``).
+
 """
 
 import math

@@ -6,6 +6,14 @@ deviation theta; the axial load is applied to the screw, which may only translat
 both balls share it through the nut's axial displacement.  The balls touch (their helix
 separation is the B2B contact separation); contact closes if the rear ball orbits faster
 (Eq. 60), and the rear ball is the faster one by construction, as in the paper's cases.
+
+References
+----------
+.. [1] Lin, B., Duan, M., Okwudire, C. E., 2019, "Analytical and Low-Order Numerical Modeling
+   of Ball-to-Ball Contact Friction in Linear Ball Bearings and Ball Screws", ASME J. Tribol.
+   141(8), DOI 10.1115/1.4043630.
+   Sec. 3.3, Fig. 12(b), Table 5, Eqs. (54)-(60).
+
 """
 
 import time

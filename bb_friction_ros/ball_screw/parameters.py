@@ -170,7 +170,28 @@ def _merge(base, extra):
 
 
 def load_ball_screw(path=None, overrides=None):
-    """Load a BallScrewConfig from YAML (key ``ball_screw``) and/or nested dict overrides."""
+    """
+    Load a validated BallScrewConfig from YAML (key ``ball_screw``) and/or overrides.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path, optional
+        YAML file; its keys are SI or the edge units ``*_deg``, ``*_mm``, ``*_um``.
+        Default: the built-in values (Table 4).
+    overrides : dict, optional
+        Nested mapping merged over the file, e.g. ``{"errors": {"theta_amplitude_deg": 1}}``.
+
+    Returns
+    -------
+    BallScrewConfig
+        Every field in SI units.
+
+    Raises
+    ------
+    ConfigError
+        On an unknown, mistyped or out-of-range key, naming it.
+
+    """
     data = {}
     if path is not None:
         raw = load_yaml(path)

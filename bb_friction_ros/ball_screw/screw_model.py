@@ -7,6 +7,14 @@ start therefore solves one ball with theta = 0 at a reference load per ball, con
 load (displacements scale as W^(2/3)) to the actual load, copies the state to every ball and
 continues theta (and the lead errors) from zero to their actual values with all balls
 coupled.  Every continuation step is a converged Newton solve.
+
+References
+----------
+.. [1] Lin, B., Duan, M., Okwudire, C. E., 2019, "Analytical and Low-Order Numerical Modeling
+   of Ball-to-Ball Contact Friction in Linear Ball Bearings and Ball Screws", ASME J. Tribol.
+   141(8), DOI 10.1115/1.4043630.
+   Eqs. (53)-(55), Table 4.
+
 """
 
 import math

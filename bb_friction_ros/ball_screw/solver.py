@@ -26,6 +26,14 @@ Both stop at the same residual tolerance and use the same trust region and line 
 Complementarity (Eq. 61) is solved exactly by an active set: a contact with a negative force
 is released, a touching inactive pair whose rear ball orbits faster is closed, until neither
 happens.
+
+References
+----------
+.. [1] Lin, B., Duan, M., Okwudire, C. E., 2019, "Analytical and Low-Order Numerical Modeling
+   of Ball-to-Ball Contact Friction in Linear Ball Bearings and Ball Screws", ASME J. Tribol.
+   141(8), DOI 10.1115/1.4043630.
+   Eqs. (54)-(61).
+
 """
 
 from dataclasses import dataclass, field

@@ -37,6 +37,14 @@ Real-time mode (``solver.realtime_max_iterations`` > 0, default 0 = off) caps th
 iterations of a warm step.  When the cap stops the solve, the step returns its last iterate
 with ``converged = False`` (never silently), keeps it as the state and continues from it at
 the next step.  A cold start is never cut short.
+
+References
+----------
+.. [1] Lin, B., Duan, M., Okwudire, C. E., 2019, "Analytical and Low-Order Numerical Modeling
+   of Ball-to-Ball Contact Friction in Linear Ball Bearings and Ball Screws", ASME J. Tribol.
+   141(8), DOI 10.1115/1.4043630.
+   Sec. 3.4, Eq. (61), Figs. 19-21.
+
 """
 
 import math
@@ -172,7 +180,31 @@ class WholeScrew:
             loads_n=np.zeros((self.n, 4)), b2b_forces_n=np.zeros(self.n))
 
     def step(self, nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s):
-        """Advance the balls to the measured nut angle and solve the equilibrium there."""
+        """
+        Advance the balls to the measured nut angle and solve the equilibrium there.
+
+        Parameters
+        ----------
+        nut_angle_rad : float
+            Measured nut angle  [rad]; the balls advance by their orbit ratio times its
+            increment, so the nut may reverse or change speed.
+        nut_velocity_rad_s : float
+            Signed nut angular velocity omega_N  [rad/s]; its sign sets the direction of
+            friction, 0 gives zero friction and keeps the state.
+        axial_load_n : float
+            Axial load W, force of the balls on the nut along +z (W > 0 opposes
+            omega_N > 0)  [N].
+        dt_s : float
+            Time since the previous step  [s].
+
+        Returns
+        -------
+        StepResult
+            Friction torque T_f = T_nut - W p / 2pi and its ball-groove and B2B parts
+            [N m], drive power omega_N T_f and total loss [W], ball azimuths [rad], orbit
+            rates [rad/s], contact loads [N], B2B contact groups, convergence.
+
+        """
         t0 = time.perf_counter()
         d_psi = float(nut_angle_rad) - self.nut_angle
         self.nut_angle = float(nut_angle_rad)
