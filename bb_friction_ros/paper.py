@@ -194,6 +194,14 @@ TABLE4 = {
     "n_balls": 37,                                     # Sec. 3.4
 }
 
+FIGURES = {
+    "kf_fit_max_c_over_a": 0.5,        # Sec. 2.3.1: f is almost linear for |c/a| < 0.5
+    "fig8_9_theta_deg": (-3.0, 3.0),   # Sec. 2.4.1 (theta < 3 deg); axes of Figs. 8-9
+    "fig8_9_rho": (-0.6, 0.6),         # axes of Figs. 8-9
+    "fig10_initial_gap_radii": 0.1,    # Sec. 2.4.2: initial gap 0.1 R_B
+}
+"""Ranges and case inputs of the paper's figures, as printed."""
+
 LINEAR_BEARING = (PSI, K_F, EPS1_NUM, EPS1_AN, EPS2_AN, EPS_B, F_B2B_NUM, F_B2B_AN, F_B2B_B,
                   MAX_LOSS_RATIO, T_NUM)
 """The linear-bearing rows of the reproduce report, in its order."""

@@ -49,17 +49,18 @@ def reproduce_linear(out, cfg, grid=25):
 
     # Table 1 and Fig. 5 ------------------------------------------------------------------
     rows.append(_row(paper.PSI, hz.psi(cfg.ball_radius_m), "exact Hertz, E* = E / (2 (1 - nu^2))"))
-    ca = np.linspace(-0.5, 0.5, 201)
+    ca_max = paper.FIGURES["kf_fit_max_c_over_a"]
+    ca = np.linspace(-ca_max, ca_max, 201)
     f_paper = -fmap.evaluate(np.arctan(-ca))[0]      # paper sign: f / (sgn(w) mu F)
     k_f = float(np.sum(ca * -f_paper) / np.sum(ca * ca))
-    rows.append(_row(paper.K_F, k_f, f"least squares over |c/a| <= 0.5 at b/a = "
+    rows.append(_row(paper.K_F, k_f, f"least squares over |c/a| <= {ca_max:g} at b/a = "
                      f"{hz.ellipticity:.4f}; tangent at 0: "
                      f"{float(-fmap.evaluate(0.0, True)[1][0]):.3f}"))
     ca_full = np.linspace(-5, 5, 1001)
     vals = fmap.evaluate(np.arctan(-ca_full))
     fig = Figure(figsize=(10, 4))
     ax = fig.subplots(1, 2)
-    for a_, lim in ((ax[0], 5), (ax[1], 0.5)):
+    for a_, lim in ((ax[0], 5), (ax[1], ca_max)):
         m = np.abs(ca_full) <= lim
         a_.plot(ca_full[m], -vals[0][m], label="normalised force $f_z/(\\mu F)$")
         a_.plot(ca_full[m], -vals[1][m], label="normalised moment $M/(\\mu F a)$")
@@ -72,7 +73,7 @@ def reproduce_linear(out, cfg, grid=25):
     figs.append(_save(fig, out / "fig05_friction_maps.png"))
 
     # Tables 2 and 3 ----------------------------------------------------------------------
-    theta, rho = math.radians(2.0), cfg.side_force_ratio
+    theta, rho = paper.TABLE1["theta_rad"], cfg.side_force_ratio
     num_a = case.numerical(theta, rho)
     an_a = case.analytical(theta, rho)
     num_b = case.numerical(theta, rho, -theta, theta)
@@ -97,8 +98,9 @@ def reproduce_linear(out, cfg, grid=25):
                      "median of 20 whole-case solves (2 free balls + the pair), this machine"))
 
     # Figs. 8 and 9 ------------------------------------------------------------------------
-    th = np.radians(np.linspace(-3.0, 3.0, grid))
-    rh = np.linspace(-0.6, 0.6, grid)
+    th_deg, rho_range = paper.FIGURES["fig8_9_theta_deg"], paper.FIGURES["fig8_9_rho"]
+    th = np.radians(np.linspace(*th_deg, grid))
+    rh = np.linspace(*rho_range, grid)
     num = case.numerical_grid(th, rh)
     ana = case.analytical(th[None, :], rh[:, None])
     ratio = (num["p_f_w"] + num["p_b2b_w"]) / num["p_f_w"] * 100
@@ -107,7 +109,7 @@ def reproduce_linear(out, cfg, grid=25):
                      f"at theta = {math.degrees(th[i[1]]):+.1f} deg, rho = {rh[i[0]]:+.2f}; "
                      f"{grid}x{grid} grid; all converged: "
                      f"{bool(num['converged'].all())}"))
-    ext = [-3, 3, -0.6, 0.6]
+    ext = [*th_deg, *rho_range]
     panels = [("Fig. 8(a) numerical: $\\varepsilon_1-\\varepsilon_2$ [%]",
                (num["eps1"] - num["eps2"]) * 100),
               ("Fig. 8(b) analytical: $\\varepsilon_1-\\varepsilon_2$ [%]",
@@ -122,7 +124,7 @@ def reproduce_linear(out, cfg, grid=25):
 
     # Fig. 10 -------------------------------------------------------------------------------
     t = np.linspace(0.0, 12.0, 601)
-    gap0 = 0.1 * cfg.ball_radius_m
+    gap0 = paper.FIGURES["fig10_initial_gap_radii"] * cfg.ball_radius_m
     fig = Figure(figsize=(10, 4))
     ax = fig.subplots(1, 2, sharey=True)
     for a_, res, title in ((ax[0], an_a, "(a) theta = 2 deg, top groove nominal"),

@@ -10,7 +10,8 @@ predictions.  Each ``check_*`` asserts, for one model output:
 - power balance: the drive power equals the sum of the friction losses (energy is neither
   made nor lost in a quasi-static solve);
 - sum of parts: the total friction equals ball-to-groove + ball-to-ball (+ empirical terms);
-- sign: losses and contact forces are never negative, friction opposes the motion.
+- sign: losses and contact forces are never negative, friction opposes the motion;
+- symmetry (``assert_mirror``): mirrored inputs give equal or sign-reversed outputs.
 
 Each tolerance is the one the tests held before this module existed, with its reason. Paper
 numbers are checked with ``assert_paper`` against ``bb_friction_ros.paper``.
@@ -66,6 +67,18 @@ def assert_sum_of_parts(total, parts, rel):
     """The total equals the sum of its parts, to ``rel`` of the total."""
     assert_finite(total=total, parts=list(parts))
     assert math.fsum(parts) == pytest.approx(total, rel=rel), "parts do not sum to the total"
+
+
+def assert_mirror(a, b, even=(), odd=(), rel=1e-6):
+    """
+    Mirror symmetry: ``b`` is the output for the mirror image of ``a``'s inputs.
+
+    Each attribute named in ``even`` is unchanged, each in ``odd`` changes sign, to ``rel``.
+    """
+    for name in even:
+        assert getattr(b, name) == pytest.approx(getattr(a, name), rel=rel), name
+    for name in odd:
+        assert getattr(b, name) == pytest.approx(-getattr(a, name), rel=rel), name
 
 
 # --- linear bearing -------------------------------------------------------------------------

@@ -4,7 +4,7 @@ import pytest
 
 from bb_friction_ros import paper
 from bb_friction_ros.ball_screw.module import solve_two_ball_module
-from invariants import assert_paper, check_module, paper_approx
+from invariants import assert_mirror, assert_paper, check_module, paper_approx
 
 LOAD_N = paper.TABLE4["module_axial_load_n"]
 
@@ -56,5 +56,6 @@ def test_table5_mirror(model, cases):
     m = solve_two_ball_module(model, 0.0, -paper.TABLE4["module_theta2_rad"][0], -LOAD_N,
                               -paper.TABLE4["nut_velocity_rad_s"])
     check_module(m)
-    assert m.f_b2b_n == pytest.approx(cases[2].f_b2b_n, rel=1e-6)
-    assert m.torque_nm == pytest.approx(-cases[2].torque_nm, rel=1e-6)
+    # (theta, W, omega_N) -> (-theta, -W, -omega_N) mirrors the module
+    assert_mirror(cases[2], m, even=("f_b2b_n", "loss_w", "friction_increase"),
+                  odd=("torque_nm",), rel=1e-6)

@@ -63,7 +63,8 @@ def test_fig5_kf_least_squares_slope(line):
 
     Tolerance and reason: ``paper.K_F``.  The tangent at 0 is 1.44.
     """
-    ca = np.linspace(-0.5, 0.5, 201)
+    ca_max = paper.FIGURES["kf_fit_max_c_over_a"]
+    ca = np.linspace(-ca_max, ca_max, 201)
     f = line.evaluate(np.arctan(-ca))[0]
     assert np.sum(ca * f) / np.sum(ca * ca) == paper_approx(paper.K_F)
     tangent = -line.evaluate(0.0, derivative=True)[1][0]
