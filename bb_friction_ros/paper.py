@@ -68,16 +68,33 @@ class PaperValue:
     target: bool = True
     reason: str = ""
 
-    def holds(self, ours):
-        """Return True when ``ours`` (in ``unit``) is within this value's tolerance."""
-        if not self.target:
-            raise ValueError(f"{self.key} is not a target: {self.reason}")
+    def within(self, ours):
+        """Return whether ``ours`` (in ``unit``) is within the tolerance; None without one."""
+        if self.band is None and self.rel is None and self.abs is None:
+            return None
         if not math.isfinite(ours):
             return False
         if self.band is not None:
             return self.band[0] <= ours <= self.band[1]
         tol = max(self.abs or 0.0, (self.rel or 0.0) * abs(self.value))
         return abs(ours - self.value) <= tol
+
+    def holds(self, ours):
+        """Return True when ``ours`` meets this target value; a non-target raises."""
+        if not self.target:
+            raise ValueError(f"{self.key} is not a target: {self.reason}")
+        return self.within(ours)
+
+    def tolerance_text(self):
+        """Return the tolerance in words: '+-2 %' (relative), '+-8 pt', '20 to 60 %'; or ''."""
+        if self.band is not None:
+            return f"{self.band[0]:g} to {self.band[1]:g} {self.unit}"
+        if self.rel is not None:
+            return f"+-{100 * self.rel:g} %"
+        if self.abs is not None:       # of a percentage: percentage points
+            unit = {"%": " pt", "1": ""}.get(self.unit, f" {self.unit}")
+            return f"+-{self.abs:g}{unit}"
+        return ""
 
 
 _PRINTED_2DP = "the paper prints two decimals"

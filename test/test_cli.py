@@ -55,6 +55,9 @@ def test_reproduce_writes_report(tmp_path, capsys):
     by_key = {r["quantity"]: r for r in rows}
     assert by_key["f_an"]["paper"] == paper.F_B2B_AN.value
     assert by_key["f_an"]["ours"] == paper_approx(paper.F_B2B_AN)
+    # each row shows the tolerance of paper.py and whether it is met
+    assert by_key["f_an"]["tolerance"] == "+-1 %" and by_key["f_an"]["within_tolerance"]
+    assert by_key["t_num"]["tolerance"] == "" and by_key["t_num"]["within_tolerance"] is None
     for name in ("fig05_friction_maps", "fig08_velocity_difference",
                  "fig09_b2b_force_and_loss", "fig10_relative_displacement"):
         assert (tmp_path / f"{name}.png").stat().st_size > 10_000

@@ -35,6 +35,17 @@ def test_holds_is_the_stated_tolerance():
     assert not paper.PSI.holds(math.nan)
     with pytest.raises(ValueError, match="not a target"):
         paper.SCREW_F_B2B_A.holds(1.92)
+    assert paper.SCREW_F_B2B_A.within(1.039) is False       # the known gap, reported
+    assert paper.T_NUM.within(0.01) is None
+
+
+def test_tolerance_in_words():
+    assert paper.F_B2B_NUM.tolerance_text() == "+-2 %"
+    assert paper.EPS1_NUM.tolerance_text() == "+-0.03 pt"
+    assert paper.K_F.tolerance_text() == "+-0.01"
+    assert paper.B2B_GROUPS.tolerance_text() == "+-0"
+    assert paper.B2B_PEAK_SHARE.tolerance_text() == "20 to 60 %"
+    assert paper.T_NUM.tolerance_text() == ""
 
 
 def test_paper_module_imports_nothing_of_the_package():

@@ -20,16 +20,23 @@ _GAP_NOTE = ("absolute F_B2B ~0.54 x paper, as an independent re-implementation 
              "F_B2B/W depends only on W/E*, see docs/assumptions_ball_screw.md")
 
 
-def _row(quantity, paper, ours, unit, note="", relative=True):
-    """One report row; deviation relative (fraction) or absolute (same unit)."""
+def _row(quantity, paper, ours, unit, note="", relative=True, check=None):
+    """
+    One report row; deviation relative (fraction) or absolute (same unit).
+
+    ``check``: the ``paper.PaperValue`` whose tolerance the report shows for this row.
+    """
     if paper is None or ours is None:
         dev = None
     elif relative:
         dev = (ours - paper) / paper
     else:
         dev = ours - paper
-    return {"quantity": quantity, "paper": paper, "ours": ours, "deviation": dev,
-            "unit": unit, "note": note}
+    row = {"quantity": quantity, "paper": paper, "ours": ours, "deviation": dev,
+           "unit": unit, "note": note}
+    if check is not None:
+        row["check"] = check
+    return row
 
 
 def reproduce_ball_screw(out_dir, config=None, n_steps=None):
@@ -44,18 +51,19 @@ def reproduce_ball_screw(out_dir, config=None, n_steps=None):
     case_b = solve_two_ball_module(model, th1, th2_b, w)
     rows = [
         _row("Table 5 (a) F_B2B, theta2 = 2 deg", paper.SCREW_F_B2B_A.value, case_a.f_b2b_n,
-             "N", _GAP_NOTE),
+             "N", _GAP_NOTE, check=paper.SCREW_F_B2B_A),
         _row("Table 5 (b) F_B2B, theta2 = 3 deg", paper.SCREW_F_B2B_B.value, case_b.f_b2b_n,
-             "N", _GAP_NOTE),
+             "N", _GAP_NOTE, check=paper.SCREW_F_B2B_B),
         _row("Table 5 F_B2B ratio (b)/(a)", paper.SCREW_F_B2B_RATIO.value,
              case_b.f_b2b_n / case_a.f_b2b_n, "1",
-             "depends on the physics, not on the unstated convention"),
+             "depends on the physics, not on the unstated convention",
+             check=paper.SCREW_F_B2B_RATIO),
         _row("Sec. 3.3 friction increase (a)", paper.SCREW_FRICTION_INCREASE_A.value,
              100 * case_a.friction_increase, "%", "loss with B2B / loss without - 1",
-             relative=False),
+             relative=False, check=paper.SCREW_FRICTION_INCREASE_A),
         _row("Sec. 3.3 friction increase (b)", paper.SCREW_FRICTION_INCREASE_B.value,
              100 * case_b.friction_increase, "%", "loss with B2B / loss without - 1",
-             relative=False),
+             relative=False, check=paper.SCREW_FRICTION_INCREASE_B),
         _row("Table 5 (a) solve time", paper.SCREW_SOLVE_TIME_A.value, case_a.solve_time_s,
              "s", "paper: MATLAB fsolve; ours includes the cold start"),
         # 0.0: drive power = sum of losses is a physical law, not a number of the paper
@@ -80,14 +88,16 @@ def reproduce_ball_screw(out_dir, config=None, n_steps=None):
     rows += [
         _row("Fig. 21 peak B2B torque / ball-groove torque", paper.B2B_PEAK_SHARE.value,
              100 * summary["peak_b2b_share"], "%",
-             f"theta amplitude {amp:g} deg (not given in the paper)", relative=False),
+             f"theta amplitude {amp:g} deg (not given in the paper)", relative=False,
+             check=paper.B2B_PEAK_SHARE),
         _row("Fig. 21 nut angle of the B2B peak", paper.B2B_PEAK_NUT_ANGLE.value,
-             summary["peak_b2b_nut_angle_deg"], "deg", "", relative=False),
+             summary["peak_b2b_nut_angle_deg"], "deg", "", relative=False,
+             check=paper.B2B_PEAK_NUT_ANGLE),
         _row("Fig. 21 nut angle where B2B torque returns to 0", paper.B2B_ZERO_NUT_ANGLE.value,
              summary["b2b_zero_nut_angle_deg"], "deg", "first step after the peak",
              relative=False),
         _row("Fig. 20 number of B2B groups", paper.B2B_GROUPS.value, summary["max_groups"],
-             "1", "maximum", relative=False),
+             "1", "maximum", relative=False, check=paper.B2B_GROUPS),
         _row("Fig. 21 ball-groove torque variation (max-min)/mean", None,
              100 * summary["b2g_torque_variation"], "%", "paper: 'barely has variation'"),
         _row("Sec. 3.4 max power balance error", 0.0, summary["max_power_balance_error"],
