@@ -31,7 +31,7 @@ def _row(value, ours, note=""):
 
 
 def _tolerance(value, ours):
-    """The row's tolerance (``paper.py``) and whether ``ours`` meets it."""
+    """Return the row's tolerance (``paper.py``) and whether ``ours`` meets it."""
     within = value.within(float(ours))
     return {"tolerance": value.tolerance_text(), "target": value.target,
             "within_tolerance": within}
