@@ -29,7 +29,8 @@ PUBLIC_API = [
     "linear_bearing.case_study:LinearPairCase.numerical",
     "linear_bearing.case_study:LinearPairCase.analytical",
     "linear_bearing.case_study:LinearPairCase.numerical_grid",
-    "ball_screw.parameters:load_ball_screw", "ball_screw.module:solve_two_ball_module",
+    "model_file:load_ball_screw", "model_file:load_model_file",
+    "ball_screw.module:solve_two_ball_module",
     "ball_screw.whole_screw:WholeScrew.step", "ball_screw.simulation:run_whole_screw",
     "ball_screw.simulation:summarize",
 ]
@@ -82,5 +83,8 @@ def test_public_function_documents_parameters_and_units(target):
         if any(UNIT_SUFFIX.search(n) for n in header.split(", ")):
             assert UNIT.search(text), f"{target}: {header} without its unit"
     # numbers returned state their units; a returned object (a class) documents its own
-    kind = returns.lstrip("(").split()[0]
-    assert kind[0].isupper() or UNIT.search(returns), f"{target}: returns without units"
+    # (each named value ``name : Type`` of several is checked alike)
+    heads = [line for line in returns.splitlines() if line and not line.startswith(" ")]
+    for head in heads:
+        kind = head.split(" : ")[-1].lstrip("(").split()[0]
+        assert kind[0].isupper() or UNIT.search(returns), f"{target}: returns without units"

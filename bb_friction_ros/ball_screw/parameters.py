@@ -2,13 +2,15 @@
 Validated configuration of the ball screw model (paper Sec. 3, Table 4; issue #4).
 
 Every physical value is a named field with its unit and admissible range.  SI inside; the YAML
-file may use the edge units ``*_deg``, ``*_mm``, ``*_um`` (converted by ``from_mapping``).
+file may use the edge units ``*_deg``, ``*_mm``, ``*_um`` (converted by ``config.from_mapping``).
+``model_file.load_ball_screw`` reads it from a file.
 """
 
 import dataclasses
 import math
+from typing import ClassVar
 
-from bb_friction_ros.config import ConfigError, field, from_mapping, load_yaml
+from bb_friction_ros.config import ConfigError, field
 
 _DEG = math.pi / 180.0
 
@@ -94,6 +96,9 @@ class NutTrack:
 class Operation:
     """Operating point of the whole-screw simulation (Sec. 3.4) and of the module (Table 5)."""
 
+    # signed, so a velocity: the old name stays readable (config.current_name)
+    RENAMED: ClassVar[dict] = {"nut_speed_rad_s": "nut_velocity_rad_s"}
+
     nut_velocity_rad_s: float = field(2.0 * math.pi, "rad/s", "nut angular velocity omega_N "
                                       "(signed)", lo=-1e4, hi=1e4)
     axial_load_n: float = field(1500.0, "N", "axial load W: force of the balls on the nut "
@@ -156,47 +161,3 @@ class BallScrewConfig:
     track: NutTrack = dataclasses.field(default_factory=NutTrack)
     operation: Operation = dataclasses.field(default_factory=Operation)
     solver: SolverSettings = dataclasses.field(default_factory=SolverSettings)
-
-
-def _merge(base, extra):
-    """Recursively merge mapping ``extra`` into a copy of ``base``."""
-    out = dict(base)
-    for key, value in (extra or {}).items():
-        if isinstance(value, dict) and isinstance(out.get(key), dict):
-            out[key] = _merge(out[key], value)
-        else:
-            out[key] = value
-    return out
-
-
-def load_ball_screw(path=None, overrides=None):
-    """
-    Load a validated BallScrewConfig from YAML (key ``ball_screw``) and/or overrides.
-
-    Parameters
-    ----------
-    path : str or pathlib.Path, optional
-        YAML file; its keys are SI or the edge units ``*_deg``, ``*_mm``, ``*_um``.
-        Default: the built-in values (Table 4).
-    overrides : dict, optional
-        Nested mapping merged over the file, e.g. ``{"errors": {"theta_amplitude_deg": 1}}``.
-
-    Returns
-    -------
-    BallScrewConfig
-        Every field in SI units.
-
-    Raises
-    ------
-    ConfigError
-        On an unknown, mistyped or out-of-range key, naming it.
-
-    """
-    data = {}
-    if path is not None:
-        raw = load_yaml(path)
-        if not isinstance(raw, dict):
-            raise ConfigError(f"{path}: expected a mapping at top level")
-        data = raw.get("ball_screw", raw)
-    data = _merge(data if isinstance(data, dict) else {}, overrides)
-    return from_mapping(BallScrewConfig, data, "ball_screw")

@@ -11,7 +11,8 @@ import math
 
 import numpy as np
 
-from bb_friction_ros.discrepancy.terms import LIBRARY
+from bb_friction_ros.discrepancy.data import inputs_of
+from bb_friction_ros.empirical_terms import LIBRARY
 
 FIGURES = ("residual_where.png", "heldout_before_after.png", "time_series.png")
 
@@ -152,7 +153,6 @@ def _bin_means(ax, var, bins, rows):
 def plot_all(out, a):
     """Write the three figures of the report."""
     from matplotlib.figure import Figure
-    from bb_friction_ros.discrepancy.workflow import inputs_of
     x = inputs_of(a.recording)
     fig = Figure(figsize=(11, 7))
     axes = fig.subplots(2, 2)

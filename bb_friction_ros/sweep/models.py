@@ -115,7 +115,11 @@ LINEAR_CASE_PARAMETERS = (
 
 
 def config_parameters(config):
-    """Return {name: Parameter} of every numeric field of a config dataclass (dotted if nested)."""
+    """
+    Return {name: Parameter} of every numeric field of a config dataclass (dotted if nested).
+
+    A renamed field (``RENAMED`` of its class) is also listed under its old name.
+    """
     out = {}
 
     def walk(obj, prefix):
@@ -127,6 +131,9 @@ def config_parameters(config):
                     and "unit" in f.metadata:
                 out[prefix + f.name] = Parameter(prefix + f.name, f.metadata["unit"],
                                                  f.metadata["doc"], isinstance(value, int))
+        for old, new in getattr(type(obj), "RENAMED", {}).items():
+            if prefix + new in out:     # an old name: the same parameter, named anew
+                out[prefix + old] = out[prefix + new]
     walk(config, "")
     return out
 
@@ -315,7 +322,7 @@ class Model:
         if self.config_root == "linear_bearing":
             from bb_friction_ros.config import load_linear_bearing
             return load_linear_bearing(path, overrides)
-        from bb_friction_ros.ball_screw.parameters import load_ball_screw
+        from bb_friction_ros.model_file import load_ball_screw
         return load_ball_screw(path, overrides)
 
     def parameters(self, base):

@@ -24,11 +24,12 @@ import hashlib
 import json
 import math
 from pathlib import Path
+import warnings
 import zlib
 
 import numpy as np
 
-from bb_friction_ros.config import _EDGE_UNITS, ConfigError, load_yaml
+from bb_friction_ros.config import ConfigError, load_yaml, parse_number, si_key
 from bb_friction_ros.sweep.models import MODELS
 
 # Bump when the meaning of a spec or the layout of its results changes: an old results
@@ -251,26 +252,21 @@ def _parameter(name, parameters, model, path):
     """Return (Parameter, factor to SI) for a name possibly written with an edge unit."""
     if not isinstance(name, str):
         raise ConfigError(f"{path}: parameter names are strings, got {name!r}")
-    if name in parameters:
-        return parameters[name], 1.0
-    head, dot, last = name.rpartition(".")
-    for edge, si, factor in _EDGE_UNITS:
-        if last.endswith(edge):
-            candidate = head + dot + last[: -len(edge)] + si
-            if candidate in parameters:
-                return parameters[candidate], factor
+    resolved = si_key(name, parameters)
+    if resolved is not None:
+        param = parameters[resolved[0]]
+        if param.name != resolved[0]:       # an old name of a renamed config field
+            warnings.warn(f"{path}: renamed to {param.name}; read as {param.name}, please "
+                          f"write {param.name}", FutureWarning, stacklevel=2)
+        return param, resolved[1]
+    known = sorted(k for k, p in parameters.items() if p.name == k)
     raise ConfigError(f"{path}: unknown parameter of model {model.name} (known: "
-                      f"{', '.join(sorted(parameters))}; edge units *_deg, *_mm, *_um)")
+                      f"{', '.join(known)}; edge units *_deg, *_mm, *_um)")
 
 
 def _number(value, path):
-    if isinstance(value, str):
-        try:   # YAML 1.1 reads 2.1e11 (no dot) as a string, as in config files
-            value = float(value)
-        except ValueError:
-            pass
-    if isinstance(value, bool) or not isinstance(value, (int, float)) \
-            or not math.isfinite(value):
+    value = parse_number(value, path)
+    if not math.isfinite(value):
         raise ConfigError(f"{path}: expected a finite number, got {value!r}")
     return value
 
