@@ -58,10 +58,15 @@ def test_reproduce_writes_report(tmp_path, capsys):
     # each row shows the tolerance of paper.py and whether it is met
     assert by_key["f_an"]["tolerance"] == "+-1 %" and by_key["f_an"]["within_tolerance"]
     assert by_key["t_num"]["tolerance"] == "" and by_key["t_num"]["within_tolerance"] is None
+    screw = {r["quantity"]: r for r in data["Ball screw (Sec. 3)"]}
+    gap = screw["Table 5 (a) F_B2B, theta2 = 2 deg"]      # a number not reached is shown so
+    assert gap["source"] == paper.SCREW_F_B2B_A.source and gap["target"] is False
+    assert gap["within_tolerance"] == paper.SCREW_F_B2B_A.within(gap["ours"])
     for name in ("fig05_friction_maps", "fig08_velocity_difference",
                  "fig09_b2b_force_and_loss", "fig10_relative_displacement"):
         assert (tmp_path / f"{name}.png").stat().st_size > 10_000
-    assert "| f_num |" in (tmp_path / "report.md").read_text()
+    report = (tmp_path / "report.md").read_text()
+    assert "| f_num |" in report and "| (+-10 %) |" in report
 
 
 def test_every_documented_command_is_registered(capsys):

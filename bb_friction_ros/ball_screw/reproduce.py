@@ -24,7 +24,7 @@ def _row(quantity, paper, ours, unit, note="", relative=True, check=None):
     """
     One report row; deviation relative (fraction) or absolute (same unit).
 
-    ``check``: the ``paper.PaperValue`` whose tolerance the report shows for this row.
+    ``check``: the ``paper.PaperValue`` whose source and tolerance the report shows.
     """
     if paper is None or ours is None:
         dev = None
@@ -36,6 +36,7 @@ def _row(quantity, paper, ours, unit, note="", relative=True, check=None):
            "unit": unit, "note": note}
     if check is not None:
         row["check"] = check
+        row["source"] = check.source
     return row
 
 
@@ -65,7 +66,8 @@ def reproduce_ball_screw(out_dir, config=None, n_steps=None):
              100 * case_b.friction_increase, "%", "loss with B2B / loss without - 1",
              relative=False, check=paper.SCREW_FRICTION_INCREASE_B),
         _row("Table 5 (a) solve time", paper.SCREW_SOLVE_TIME_A.value, case_a.solve_time_s,
-             "s", "paper: MATLAB fsolve; ours includes the cold start"),
+             "s", "paper: MATLAB fsolve; ours includes the cold start",
+             check=paper.SCREW_SOLVE_TIME_A),
         # 0.0: drive power = sum of losses is a physical law, not a number of the paper
         _row("Table 5 (a) power balance error", 0.0, case_a.power_balance_error, "1",
              "|omega_N T_f - losses| / losses", relative=False),
@@ -95,7 +97,7 @@ def reproduce_ball_screw(out_dir, config=None, n_steps=None):
              check=paper.B2B_PEAK_NUT_ANGLE),
         _row("Fig. 21 nut angle where B2B torque returns to 0", paper.B2B_ZERO_NUT_ANGLE.value,
              summary["b2b_zero_nut_angle_deg"], "deg", "first step after the peak",
-             relative=False),
+             relative=False, check=paper.B2B_ZERO_NUT_ANGLE),
         _row("Fig. 20 number of B2B groups", paper.B2B_GROUPS.value, summary["max_groups"],
              "1", "maximum", relative=False, check=paper.B2B_GROUPS),
         _row("Fig. 21 ball-groove torque variation (max-min)/mean", None,
