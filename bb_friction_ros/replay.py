@@ -394,10 +394,11 @@ def nothing_accepted_message(src, stats, settings):
 
 def plot_replay(out, series):
     """Predicted vs measured torque, and the B2B groups over time (min/max decimated)."""
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
     c = series.decimated()
     t = c["t"] - c["t"][0]
-    fig, ax = plt.subplots(3, 1, figsize=(10, 8), sharex=True)
+    fig = Figure(figsize=(10, 8))
+    ax = fig.subplots(3, 1, sharex=True)
     if series.measured:
         ax[0].plot(t, c["meas"], lw=0.6, color="0.5", label="measured")
     ax[0].plot(t, c["torque"], lw=1.0, label="predicted (total)")
@@ -418,4 +419,3 @@ def plot_replay(out, series):
         a.grid(True)
     fig.tight_layout()
     fig.savefig(Path(out) / "replay_torque_and_groups.png", dpi=110)
-    plt.close(fig)
