@@ -141,12 +141,12 @@ class _Series:
         for block in self.chunks():
             block = np.concatenate([carry, block])
             n = (len(block) // per) * per
-            carry = block[n:]
+            carry = block[n:].copy()
             if n:
                 b = block[:n].reshape(-1, per, len(self.COLUMNS))
                 lo.append(np.nanmin(b, axis=1) if self.measured else b.min(axis=1))
                 hi.append(np.nanmax(b, axis=1) if self.measured else b.max(axis=1))
-                xs.append(b[:, 0, 0])
+                xs.append(b[:, 0, 0].copy())     # a view would keep every block alive
         if len(carry):
             lo.append(np.nanmin(carry, axis=0)[None] if self.measured else carry.min(0)[None])
             hi.append(np.nanmax(carry, axis=0)[None] if self.measured else carry.max(0)[None])

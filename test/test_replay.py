@@ -2,6 +2,7 @@
 
 import csv
 import json
+import math
 
 import numpy as np
 import pytest
@@ -379,3 +380,30 @@ def test_replay_streams_in_bounded_memory(tmp_path, monkeypatch):
     assert summary["samples"] == n and alive, alive
     assert alive["events"] < 20 and alive["predictions"] < 20, alive
     assert alive["series_rows_in_memory"] <= _Series.BUFFER_ROWS, alive
+
+
+def test_plotted_series_decimates_in_bounded_memory():
+    """
+    Finding 26: the plot's min/max envelope is built a buffer at a time.
+
+    200k rows (12.8 MB of float64) give at most 2 points per bucket, keep every extreme,
+    and the decimation holds < 3 MB at its peak (a kept view of each block held them all).
+    """
+    import tracemalloc
+    from bb_friction_ros.replay import _Series
+    series = _Series(measured=False)
+    n = 200_000
+    for k in range(n):
+        series.measure((0.001 * k, math.sin(k / 500.0), 0.0, 6.0, 1500.0, 0.0, float(k % 7)),
+                       math.nan)
+    tracemalloc.start()
+    try:
+        c = series.decimated(buckets=2000)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+        series.close()
+    assert len(c["t"]) <= 2 * 2000 + 2 and len(c["torque"]) == len(c["t"])
+    assert c["torque"].max() == pytest.approx(1.0, abs=1e-6) and c["largest"].max() == 6.0
+    assert c["t"][0] == 0.0 and c["t"][-1] <= 0.001 * (n - 1)
+    assert peak < 3_000_000, peak
