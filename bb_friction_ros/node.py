@@ -2,23 +2,41 @@
 ROS 2 node ``friction_node``: predicted ball-screw friction torque for a motion controller.
 
 The only module that imports rclpy.  A thin shell: messages -> ``runner`` (pure core) ->
-messages.  Callbacks validate and enqueue; a background thread runs the whole-screw model
-and publishes, so no callback ever waits for physics.
+messages.
+
+Per-input path: the nut-state callback validates the sample and, when no model step is due
+(most inputs: the model runs at ``model_rate_hz``, the inputs at the controller's rate),
+answers it at once from the latest model state, in the executor thread.  A sample that is
+due a step (or arrives while one is running) goes to the model thread, which steps the
+whole-screw model (a numba kernel that releases the GIL, so the executor keeps taking
+inputs), answers it and everything queued behind it in order, and then steps a copy of the
+state ahead for the look-ahead profile.  Every sample reaches the runner in arrival order, so
+the answers equal replay's exactly (the runner is the same).
+
+Answer age is bounded: an answer older than ``max_answer_age_s`` since the input was received
+by the middleware (``received_timestamp``) is not published but counted (``shed_inputs``);
+its sample still goes through the runner, so the model is not disturbed.  When the model
+itself falls behind, a step due on a queued sample that is already too old moves to the
+newest one (``skipped_steps``; answers then differ from replay's, and diagnostics say so).
 
 Subscribes: ``nut_state`` (sensor_msgs/JointState, joint ``nut_joint``), ``axial_load``
 (geometry_msgs/WrenchStamped, force.z).  Publishes: ``friction/prediction``
 (bb_friction_msgs/FrictionPrediction, stamped with the input stamp it answers),
+``friction/feedforward`` (std_msgs/Float64MultiArray [torque], the ros2_control
+forward-command convention; the runner's safe value when a step did not converge),
+``friction/feedforward_profile`` (bb_friction_msgs/FeedforwardProfile, at every model step),
 ``friction/contact_groups`` (bb_friction_msgs/ContactGroupStatus, on change and at
-``groups_rate_hz``), ``friction/feedforward`` (std_msgs/Float64MultiArray [torque], the
-ros2_control forward-command convention) and ``/diagnostics``.
+``groups_rate_hz``) and ``/diagnostics``.
 """
 
 import collections
+import signal
 import sys
 import threading
 import time
 
-from bb_friction_msgs.msg import ContactGroup, ContactGroupStatus, FrictionPrediction
+from bb_friction_msgs.msg import (ContactGroup, ContactGroupStatus, FeedforwardProfile,
+                                  FrictionPrediction)
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import WrenchStamped
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
@@ -32,10 +50,14 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 from bb_friction_ros.config import bundled_config, ConfigError
-from bb_friction_ros.runner import build_runner, InputAssembler, InputError
+from bb_friction_ros.runner import (build_runner, InputAssembler, InputError,
+                                    look_ahead_profile)
 
 NODE_NAME = "friction_node"
 GIL_SWITCH_INTERVAL_S = 2.5e-4
+# Topics this node publishes; another publisher on any of them is reported (two nodes?).
+OUTPUT_TOPICS = ("friction/prediction", "friction/feedforward",
+                 "friction/feedforward_profile", "friction/contact_groups")
 
 
 def _float_param(lo, hi, doc):
@@ -63,8 +85,18 @@ PARAMETERS = {   # name: (default, descriptor)
                                              "as absurd [N]")),
     "reliable_qos": (False, ParameterDescriptor(
         description="inputs with reliable QoS instead of the sensor-data profile")),
+    "max_answer_age_s": (0.02, _float_param(1e-4, 10.0, "largest age of an answer, from "
+                                            "the input's arrival to publication; older "
+                                            "answers are shed and counted [s]")),
+    "profile_horizon_periods": (2.0, _float_param(2.0, 20.0, "look-ahead profile length "
+                                                  "in model periods of motion")),
+    "profile_points": (3, _int_param(2, 64, "points of the look-ahead profile (the first "
+                                     "is the step's own angle)")),
 }
-RUNTIME = {"nut_joint", "model_rate_hz", "groups_rate_hz", "max_axial_load_n", "config_file"}
+RUNTIME = {"nut_joint", "model_rate_hz", "groups_rate_hz", "max_axial_load_n", "config_file",
+           "max_answer_age_s", "profile_horizon_periods", "profile_points"}
+# declared by rclpy itself for every node
+_BUILTIN_PARAMETERS = {"use_sim_time", "start_type_description_service"}
 
 
 class FrictionNode(Node):
@@ -79,27 +111,48 @@ class FrictionNode(Node):
             except Exception as exc:   # rclpy raises several types for a bad override
                 raise ConfigError(f"{NODE_NAME}.{name}: {exc}") from exc
         p = {name: self.get_parameter(name).value for name in PARAMETERS}
+        self.unknown_parameters = sorted(
+            set(getattr(self, "_parameter_overrides", {})) - set(PARAMETERS)
+            - _BUILTIN_PARAMETERS)
+        for name in self.unknown_parameters:
+            self.get_logger().warning(f"unknown parameter {name!r} ignored (known: "
+                                      f"{', '.join(PARAMETERS)})")
         self._lock = threading.Lock()
         self._wake = threading.Condition(self._lock)
         self._queue = collections.deque(maxlen=int(p["queue_size"]))
+        self._busy = False          # the model thread owns the runner until it clears this
+        self._profile_seed = None
+        try:
+            self._assembler = InputAssembler(p["nut_joint"], p["max_axial_load_n"])
+        except ValueError as exc:
+            raise ConfigError(f"{NODE_NAME}.nut_joint: {exc}") from exc
         self._runner = build_runner(p["config_file"] or bundled_config("ball_screw.yaml"),
                                     p["model_rate_hz"])
-        self._assembler = InputAssembler(p["nut_joint"], p["max_axial_load_n"])
+        self._max_age_ns = int(p["max_answer_age_s"] * 1e9)
+        self._profile_shape = (float(p["profile_horizon_periods"]), int(p["profile_points"]))
         self._dropped = 0
+        self._shed = 0
+        self._shed_at_diag = 0
         self._rejected = collections.Counter()
         self._rejected_states = 0
         self._received = collections.Counter()
         self._published = 0
+        self._inline = 0
+        self._profiles = 0
+        self._profiles_abandoned = 0
+        self._ff_held = 0
         self._latest = None
         self._latest_stamp = None
         self._last_groups = None
         self._reset_note = ""
+        self._other_publishers = {}
         self._t_start = time.monotonic()
         self._steps_at_diag = (0, self._t_start)
         self._stop = False
 
         # Sensor-data semantics (best effort, volatile) with the depth of our own queue: the
         # profile's depth of 5 dropped ~1 % of inputs at 1 kHz while the executor waited.
+        # Inputs older than max_answer_age_s when taken are shed (counted), not answered.
         qos = QoSProfile(depth=int(p["queue_size"]), durability=DurabilityPolicy.VOLATILE,
                          reliability=(ReliabilityPolicy.RELIABLE if p["reliable_qos"]
                                       else ReliabilityPolicy.BEST_EFFORT))
@@ -107,6 +160,8 @@ class FrictionNode(Node):
         self._pub_groups = self.create_publisher(ContactGroupStatus, "friction/contact_groups",
                                                  10)
         self._pub_ff = self.create_publisher(Float64MultiArray, "friction/feedforward", 10)
+        self._pub_profile = self.create_publisher(FeedforwardProfile,
+                                                  "friction/feedforward_profile", 10)
         self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         # Load first: when both are ready in one wait, the executor serves subscriptions in
         # creation order, and a state must see the load of its own stamp (as replay does).
@@ -119,24 +174,34 @@ class FrictionNode(Node):
                                         daemon=True)
         self._thread.start()
 
-    # --- callbacks: validate and enqueue, nothing else ------------------------------------
-    def _on_nut_state(self, msg):
-        t_recv = time.perf_counter()
-        stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+    # --- per-input path (executor thread) -------------------------------------------------
+    def _on_nut_state(self, msg, info):
+        recv_ns = info.get("received_timestamp") or time.time_ns()
+        stamp = msg.header.stamp
         with self._lock:
             self._received["nut_state"] += 1
             try:
-                sample = self._assembler.on_nut_state(stamp, msg.name, msg.position,
-                                                      msg.velocity)
+                sample = self._assembler.on_nut_state(stamp.sec + 1e-9 * stamp.nanosec,
+                                                      msg.name, msg.position, msg.velocity)
             except InputError as err:
                 self._rejected[err.reason] += 1
                 self._rejected_states += 1
                 return
-            if len(self._queue) == self._queue.maxlen:
-                self._dropped += 1      # deque drops the oldest: the newest input wins
-            # the original stamp goes out unchanged: float seconds lose ~0.2 us at epoch times
-            self._queue.append((sample, t_recv, msg.header.stamp))
-            self._wake.notify()
+            runner = self._runner
+            if self._busy or runner.step_due(sample):
+                # the model thread answers it, in order, after the step it waits for
+                if len(self._queue) == self._queue.maxlen:
+                    self._dropped += 1      # deque drops the oldest: the newest input wins
+                # the original stamp goes out unchanged: float seconds lose ~0.2 us at
+                # epoch times
+                self._queue.append((sample, recv_ns, stamp))
+                self._busy = True
+                self._wake.notify()
+                return
+        # No step due and the model thread idle (only this thread makes it busy): answer
+        # from the latest state at once.
+        self._inline += 1
+        self._answer(runner.process(sample), recv_ns, stamp)
 
     def _on_axial_load(self, msg):
         with self._lock:
@@ -146,35 +211,8 @@ class FrictionNode(Node):
             except InputError as err:
                 self._rejected[err.reason] += 1
 
-    # --- model thread ---------------------------------------------------------------------
-    def _model_loop(self):
-        while True:
-            with self._lock:
-                while not self._queue and not self._stop:
-                    self._wake.wait(timeout=0.5)
-                if self._stop:
-                    return
-                backlog = list(self._queue)
-                self._queue.clear()
-                runner = self._runner
-            # Every input is answered; only the newest may step the model (newest wins).
-            for k, (sample, t_recv, stamp) in enumerate(backlog):
-                resets = runner.stats.resets
-                try:
-                    pred = runner.process(sample, allow_step=k == len(backlog) - 1)
-                except Exception as exc:     # one bad step must not kill the node
-                    with self._lock:
-                        self._rejected["model_error"] += 1
-                    self.get_logger().error(f"model step failed: {exc!r}; state reset")
-                    runner.reset()
-                    continue
-                if runner.stats.resets != resets:
-                    self._reset_note = (f"input stamps went backwards at {sample.stamp_s:.6f}"
-                                        " s: model state reset")
-                    self.get_logger().warning(self._reset_note)
-                self._publish_prediction(pred, t_recv, stamp)
-
-    def _publish_prediction(self, pred, t_recv, stamp):
+    def _answer(self, pred, recv_ns, stamp):
+        """Publish the prediction and the feedforward, unless the answer is too old."""
         msg = FrictionPrediction()
         msg.header.stamp = stamp
         msg.nut_angle_rad = pred.nut_angle_rad
@@ -187,17 +225,89 @@ class FrictionNode(Node):
         msg.converged = pred.converged
         msg.model_age_s = pred.model_age_s
         msg.n_groups = len(pred.groups)
-        msg.model_latency_s = time.perf_counter() - t_recv
+        ff = Float64MultiArray(data=[pred.feedforward_nm])
+        age_ns = time.time_ns() - recv_ns
+        if age_ns > self._max_age_ns:
+            with self._lock:
+                self._shed += 1
+            return False
+        msg.model_latency_s = 1e-9 * age_ns
         self._pub_pred.publish(msg)
-        self._pub_ff.publish(Float64MultiArray(data=[pred.torque_total_nm]))
+        self._pub_ff.publish(ff)
         with self._lock:
             self._published += 1
+            self._ff_held += pred.feedforward_held
             self._latest = pred
             self._latest_stamp = stamp
-            changed = pred.groups != self._last_groups
+            changed = pred.groups is not self._last_groups and pred.groups != self._last_groups
         if changed:
             self._publish_groups()
+        return True
 
+    # --- model thread ---------------------------------------------------------------------
+    def _model_loop(self):
+        while True:
+            with self._lock:
+                while not self._queue and not self._stop:
+                    if self._profile_seed is not None:
+                        break
+                    self._busy = False
+                    self._wake.wait(timeout=0.5)
+                if self._stop:
+                    return
+                if not self._queue:
+                    # queue drained, a profile to compute: inputs are answered inline
+                    # meanwhile; a step falling due abandons the profile
+                    seed, self._profile_seed = self._profile_seed, None
+                    self._busy = False
+                    item = None
+                else:
+                    item = self._queue.popleft()
+                    newest = not self._queue
+                    runner = self._runner
+            if item is None:
+                self._publish_profile(seed)
+                continue
+            sample, recv_ns, stamp = item
+            # The model fell behind: a step due on a sample already too old to answer is
+            # left to the newest one (the model then tracks the present, not its backlog).
+            stale = time.time_ns() - recv_ns > self._max_age_ns
+            resets = runner.stats.resets
+            try:
+                pred = runner.process(sample, allow_step=newest or not stale)
+            except Exception as exc:     # one bad step must not kill the node
+                with self._lock:
+                    self._rejected["model_error"] += 1
+                self.get_logger().error(f"model step failed: {exc!r}; state reset")
+                runner.reset()
+                continue
+            if runner.stats.resets != resets:
+                self._reset_note = (f"input stamps went backwards at {sample.stamp_s:.6f}"
+                                    " s: model state reset")
+                self.get_logger().warning(self._reset_note)
+            if pred.stepped:
+                self._profile_seed = (runner.profile_seed(sample), stamp)
+            self._answer(pred, recv_ns, stamp)
+
+    def _publish_profile(self, seed_stamp):
+        seed, stamp = seed_stamp
+        horizon, points = self._profile_shape
+        out = look_ahead_profile(seed, horizon, points, should_stop=lambda: self._busy)
+        if out is None:
+            with self._lock:
+                self._profiles_abandoned += 1
+            return
+        angles, torques, converged = out
+        msg = FeedforwardProfile()
+        msg.header.stamp = stamp
+        msg.nut_angle_rad = angles
+        msg.torque_total_nm = torques
+        msg.nut_velocity_rad_s = seed.sample.nut_velocity_rad_s
+        msg.axial_load_n = seed.sample.axial_load_n
+        msg.converged = converged
+        self._pub_profile.publish(msg)
+        with self._lock:
+            self._profiles += 1
     def _publish_groups(self):
         with self._lock:
             pred, stamp = self._latest, self._latest_stamp
@@ -220,18 +330,28 @@ class FrictionNode(Node):
             now = time.monotonic()
             steps0, t0 = self._steps_at_diag
             rate = (stats.model_steps - steps0) / max(now - t0, 1e-9)
+            shed_window = self._shed - self._shed_at_diag
             if advance:
                 self._steps_at_diag = (stats.model_steps, now)
+                self._shed_at_diag = self._shed
             latest = self._latest
             values = {
                 "model_rate_hz": rate,
                 "model_steps": stats.model_steps,
                 "last_step_s": stats.last_step_wall_s,
                 "nonconverged_steps": stats.nonconverged_steps,
+                "feedforward_held": self._ff_held,
                 "queue_length": len(self._queue),
                 "skipped_inputs": self._dropped + stats.skipped_steps,
+                "skipped_steps": stats.skipped_steps,
                 "dropped_inputs": self._dropped,
+                "shed_inputs": self._shed,
+                "shed_since_last_report": shed_window,
+                "max_answer_age_s": 1e-9 * self._max_age_ns,
                 "published": self._published,
+                "answered_inline": self._inline,
+                "profiles": self._profiles,
+                "profiles_abandoned": self._profiles_abandoned,
                 "resets": stats.resets,
                 "lag_s": 0.0 if latest is None else latest.model_age_s,
                 "received_nut_state": self._received["nut_state"],
@@ -241,23 +361,62 @@ class FrictionNode(Node):
             }
             for reason, n in sorted(self._rejected.items()):
                 values[f"rejected_{reason}"] = n
+            for topic, n in sorted(self._other_publishers.items()):
+                values[f"publishers_{topic}"] = n
+            if self.unknown_parameters:
+                values["unknown_parameters"] = ",".join(self.unknown_parameters)
             converged = latest is None or latest.converged
         return values, converged
 
+    def check_other_publishers(self):
+        """
+        Count the publishers on our output topics; warn (once per change) if not only us.
+
+        Two friction_nodes on one domain would both answer every input: a controller would
+        get two feedforward commands per cycle.  Returns {topic: publisher count} of the
+        topics with more than one.
+        """
+        found = {}
+        for pub in (self._pub_pred, self._pub_ff, self._pub_profile, self._pub_groups):
+            n = self.count_publishers(pub.topic_name)
+            if n > 1:
+                found[pub.topic_name] = n
+        if found != self._other_publishers:
+            for topic, n in sorted(found.items()):
+                self.get_logger().warning(
+                    f"{n} publishers on {topic}: another friction_node on this domain? "
+                    "A controller would get two answers per input.")
+        with self._lock:
+            self._other_publishers = found
+        return found
+
     def _publish_diagnostics(self):
+        others = self.check_other_publishers()
         values, converged = self.diagnostics_values()
         status = DiagnosticStatus(name=f"{self.get_name()}: friction model",
                                   hardware_id="ball_screw")
+        notes = []
         if not converged:
-            status.level, status.message = DiagnosticStatus.WARN, "solver did not converge"
-        elif values["rejected_total"] or values["skipped_inputs"]:
-            status.level = DiagnosticStatus.WARN
-            status.message = (f"{values['rejected_total']} inputs rejected, "
-                              f"{values['skipped_inputs']} skipped")
-        else:
-            status.level, status.message = DiagnosticStatus.OK, "ok"
+            notes.append("solver did not converge: feedforward holds the last converged "
+                         "value (0 after a reversal or at standstill)")
+        if values["shed_since_last_report"]:
+            notes.append(f"shedding load: {values['shed_since_last_report']} answers older "
+                         f"than max_answer_age_s = {values['max_answer_age_s']:.6g} s not "
+                         "published")
+        if values["skipped_steps"]:
+            notes.append(f"model fell behind: {values['skipped_steps']} steps skipped "
+                         "(answers differ from replay from then on)")
+        if values["rejected_total"] or values["dropped_inputs"]:
+            notes.append(f"{values['rejected_total']} inputs rejected, "
+                         f"{values['dropped_inputs']} dropped")
+        for topic, n in sorted(others.items()):
+            notes.append(f"{n} publishers on {topic} (another friction_node?)")
+        if self.unknown_parameters:
+            notes.append("unknown parameters ignored: " + ", ".join(self.unknown_parameters))
         if self._reset_note:
-            status.message += "; " + self._reset_note
+            notes.append(self._reset_note)
+        status.level = DiagnosticStatus.WARN if notes else DiagnosticStatus.OK
+        status.message = "; ".join(notes) if notes else "ok"
         status.values = [KeyValue(key=k, value=f"{v:.6g}" if isinstance(v, float) else str(v))
                          for k, v in values.items()]
         msg = DiagnosticArray(status=[status])
@@ -272,6 +431,10 @@ class FrictionNode(Node):
                                            reason=f"{prm.name}: not changeable at runtime")
         try:
             updates = {prm.name: prm.value for prm in params}
+            if "nut_joint" in updates and (not isinstance(updates["nut_joint"], str)
+                                           or not updates["nut_joint"].strip()):
+                raise ValueError(f"nut_joint must be a non-empty joint name, got "
+                                 f"{updates['nut_joint']!r}")
             runner = None
             if "config_file" in updates or "model_rate_hz" in updates:
                 cfg = updates.get("config_file", self.get_parameter("config_file").value)
@@ -286,6 +449,12 @@ class FrictionNode(Node):
                 self._assembler.nut_joint = updates["nut_joint"]
             if "max_axial_load_n" in updates:
                 self._assembler.max_axial_load_n = updates["max_axial_load_n"]
+            if "max_answer_age_s" in updates:
+                self._max_age_ns = int(updates["max_answer_age_s"] * 1e9)
+            if {"profile_horizon_periods", "profile_points"} & set(updates):
+                self._profile_shape = (
+                    float(updates.get("profile_horizon_periods", self._profile_shape[0])),
+                    int(updates.get("profile_points", self._profile_shape[1])))
         if "groups_rate_hz" in updates:
             self._groups_timer.timer_period_ns = int(1e9 / updates["groups_rate_hz"])
         return SetParametersResult(successful=True)
@@ -326,6 +495,8 @@ def play_through_node(events, parameters=None, context=None, speed=1.0, settle_s
         rclpy.init(context=context)
     switch_interval = sys.getswitchinterval()
     sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)      # as friction_node's main() does
+    if lockstep:    # exact comparisons, not timing: no answer is too old to publish
+        parameters = {"max_answer_age_s": 10.0, **(parameters or {})}
     overrides = [Parameter(k, value=v) for k, v in (parameters or {}).items()]
     node = FrictionNode(context=context, parameter_overrides=overrides)
     io = Node("friction_player", context=context)
@@ -371,7 +542,8 @@ def play_through_node(events, parameters=None, context=None, speed=1.0, settle_s
                 pub_load.publish(msg)
                 sent_loads += 1
             if lockstep:
-                _wait_until(node, lambda v: v["published"] + v["rejected_nut_state"] >= sent
+                _wait_until(node, lambda v: v["published"] + v["shed_inputs"]
+                            + v["rejected_nut_state"] >= sent
                             and v["received_axial_load"] >= sent_loads + handshakes)
         deadline = time.monotonic() + settle_s
         while time.monotonic() < deadline:
@@ -443,29 +615,51 @@ def _prediction_dict(msg):
             "model_age_s": msg.model_age_s, "n_groups": msg.n_groups}
 
 
+class _Shutdown(Exception):
+    """SIGTERM arrived (raised in the main thread by our handler)."""
+
+
+def _raise_shutdown(signum, frame):
+    raise _Shutdown(signum)
+
+
 def main(args=None):
     """Console script ``friction_node`` (also ``bb-friction node``)."""
-    # Two Python threads (executor, model) trade the GIL for every input; at CPython's default
-    # 5 ms switch interval each handoff can wait up to 5 ms (measured: bench/bench_node.py).
+    # Two Python threads (executor, model) trade the GIL; at CPython's default 5 ms switch
+    # interval each handoff can wait up to 5 ms (measured: bench/bench_node.py).
     sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)
+    # A signal may come at any moment of start-up (loading numba and the friction maps takes
+    # ~1 s): before rclpy.init its handlers do not exist, and after it they shut the context
+    # down under a half-built node (RCLError "context is invalid").  Both end here, cleanly.
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _raise_shutdown)
+    node = None
     try:
-        rclpy.init(args=args)
-    except Exception as exc:       # e.g. an unreadable --params-file
-        print(f"{NODE_NAME}: cannot start: {exc}", file=sys.stderr)
-        return 2
-    try:
-        node = FrictionNode()
-    except ConfigError as exc:
-        print(f"{NODE_NAME}: config error: {exc}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return 2
-    try:
+        try:
+            rclpy.init(args=args)
+        except (KeyboardInterrupt, _Shutdown):
+            raise
+        except Exception as exc:       # e.g. an unreadable --params-file
+            print(f"{NODE_NAME}: cannot start: {exc}", file=sys.stderr)
+            return 2
+        try:
+            node = FrictionNode()
+        except ConfigError as exc:
+            print(f"{NODE_NAME}: config error: {exc}", file=sys.stderr)
+            return 2
+        except Exception:
+            if rclpy.ok():
+                raise
+            return 0            # the context was shut down by a signal during start-up
         rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
+    except (KeyboardInterrupt, ExternalShutdownException, _Shutdown):
         pass
     finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+        try:
+            if node is not None:
+                node.destroy_node()
+        finally:
+            rclpy.try_shutdown()
     return 0
 
 
