@@ -156,6 +156,10 @@ class FrictionNode(Node):
         qos = QoSProfile(depth=int(p["queue_size"]), durability=DurabilityPolicy.VOLATILE,
                          reliability=(ReliabilityPolicy.RELIABLE if p["reliable_qos"]
                                       else ReliabilityPolicy.BEST_EFFORT))
+        # our own values are floats by construction: no per-field checks (see _answer)
+        self._out_input, self._out_model = (
+            (FrictionPrediction(check_fields=False),
+             Float64MultiArray(data=[0.0], check_fields=False)) for _ in range(2))
         self._pub_pred = self.create_publisher(FrictionPrediction, "friction/prediction", 10)
         self._pub_groups = self.create_publisher(ContactGroupStatus, "friction/contact_groups",
                                                  10)
@@ -163,16 +167,58 @@ class FrictionNode(Node):
         self._pub_profile = self.create_publisher(FeedforwardProfile,
                                                   "friction/feedforward_profile", 10)
         self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
-        # Load first: when both are ready in one wait, the executor serves subscriptions in
-        # creation order, and a state must see the load of its own stamp (as replay does).
-        self.create_subscription(WrenchStamped, "axial_load", self._on_axial_load, qos)
-        self.create_subscription(JointState, "nut_state", self._on_nut_state, qos)
+        self._inputs = (
+            self.create_subscription(WrenchStamped, "axial_load", self._on_axial_load, qos),
+            self.create_subscription(JointState, "nut_state", self._on_nut_state, qos))
+        # The inputs are taken by our own thread, not by the executor: rclpy's executor
+        # spends ~0.3-0.6 ms of Python per message (rebuilding its wait set, tasks,
+        # callback groups; measured with py-spy at 1 kHz, bench/bench_node.py), more than
+        # a 1-2 kHz input leaves on a small machine.  The executor keeps timers and
+        # parameter services.
+        for sub in self._inputs:
+            if sub in getattr(self, "_subscriptions", ()):
+                self._subscriptions.remove(sub)
         self._groups_timer = self.create_timer(1.0 / p["groups_rate_hz"], self._publish_groups)
         self.create_timer(1.0 / p["diagnostics_rate_hz"], self._publish_diagnostics)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._thread = threading.Thread(target=self._model_loop, name="friction_model",
                                         daemon=True)
         self._thread.start()
+        self._input_thread = threading.Thread(target=self._input_loop, name="friction_input",
+                                              daemon=True)
+        self._input_thread.start()
+
+    # --- input thread ---------------------------------------------------------------------
+    def _input_loop(self):
+        """Wait on both inputs; take everything ready; handle it in arrival order."""
+        from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+        load_sub, state_sub = self._inputs
+        wait_set = _rclpy.WaitSet(2, 0, 0, 0, 0, 0, self.context.handle)
+        while not self._stop:
+            try:
+                wait_set.clear_entities()
+                wait_set.add_subscription(load_sub.handle)
+                wait_set.add_subscription(state_sub.handle)
+                wait_set.wait(50_000_000)       # 50 ms: how soon a stop is noticed
+                batch = []
+                for is_state, sub in enumerate((load_sub, state_sub)):
+                    while True:
+                        with sub.handle:
+                            got = sub.handle.take_message(sub.msg_type, False)
+                        if got is None:
+                            break
+                        batch.append((got[1].get("received_timestamp") or 0, is_state, got))
+            except Exception:           # context shut down or node destroyed: stop
+                if self._stop or not self.context.ok():
+                    return
+                raise
+            # arrival order across the two topics, as a recorder (and replay) sees them
+            batch.sort(key=lambda item: item[0])
+            for _, is_state, (msg, info) in batch:
+                if is_state:
+                    self._on_nut_state(msg, info)
+                else:
+                    self._on_axial_load(msg)
 
     # --- per-input path (executor thread) -------------------------------------------------
     def _on_nut_state(self, msg, info):
@@ -201,7 +247,7 @@ class FrictionNode(Node):
         # No step due and the model thread idle (only this thread makes it busy): answer
         # from the latest state at once.
         self._inline += 1
-        self._answer(runner.process(sample), recv_ns, stamp)
+        self._answer(runner.process(sample), recv_ns, stamp, self._out_input)
 
     def _on_axial_load(self, msg):
         with self._lock:
@@ -211,9 +257,15 @@ class FrictionNode(Node):
             except InputError as err:
                 self._rejected[err.reason] += 1
 
-    def _answer(self, pred, recv_ns, stamp):
-        """Publish the prediction and the feedforward, unless the answer is too old."""
-        msg = FrictionPrediction()
+    def _answer(self, pred, recv_ns, stamp, out):
+        """
+        Publish the prediction and the feedforward, unless the answer is too old.
+
+        ``out`` is the calling thread's own (FrictionPrediction, Float64MultiArray) pair,
+        reused: publish serializes at once, and building messages (their constructors
+        import and validate every field) cost ~60 us per input (profiled).
+        """
+        msg, ff = out
         msg.header.stamp = stamp
         msg.nut_angle_rad = pred.nut_angle_rad
         msg.nut_velocity_rad_s = pred.nut_velocity_rad_s
@@ -225,7 +277,7 @@ class FrictionNode(Node):
         msg.converged = pred.converged
         msg.model_age_s = pred.model_age_s
         msg.n_groups = len(pred.groups)
-        ff = Float64MultiArray(data=[pred.feedforward_nm])
+        ff.data[0] = pred.feedforward_nm
         age_ns = time.time_ns() - recv_ns
         if age_ns > self._max_age_ns:
             with self._lock:
@@ -287,7 +339,7 @@ class FrictionNode(Node):
                 self.get_logger().warning(self._reset_note)
             if pred.stepped:
                 self._profile_seed = (runner.profile_seed(sample), stamp)
-            self._answer(pred, recv_ns, stamp)
+            self._answer(pred, recv_ns, stamp, self._out_model)
 
     def _publish_profile(self, seed_stamp):
         seed, stamp = seed_stamp
@@ -460,11 +512,14 @@ class FrictionNode(Node):
         return SetParametersResult(successful=True)
 
     def destroy_node(self):
-        """Stop the model thread, then destroy the node."""
+        """Stop the input and model threads, then destroy the node."""
         with self._lock:
             self._stop = True
             self._wake.notify_all()
+        self._input_thread.join(timeout=5.0)
         self._thread.join(timeout=5.0)
+        for sub in self._inputs:
+            sub.destroy()
         return super().destroy_node()
 
 
