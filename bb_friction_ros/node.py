@@ -16,8 +16,8 @@ the answers equal replay's exactly (the runner is the same).
 Answer age is bounded: an answer older than ``max_answer_age_s`` since the input was received
 by the middleware (``received_timestamp``) is not published but counted (``shed_inputs``);
 its sample still goes through the runner, so the model is not disturbed.  When the model
-itself falls behind, a step due on a queued sample that is already too old moves to the
-newest one (``skipped_steps``; answers then differ from replay's, and diagnostics say so).
+itself falls behind (its queue spans a model period), a step due on a queued sample moves to
+the newest one (``skipped_steps``; answers then differ from replay's, and diagnostics say so).
 
 Subscribes: ``nut_state`` (sensor_msgs/JointState, joint ``nut_joint``), ``axial_load``
 (geometry_msgs/WrenchStamped, force.z).  Publishes: ``friction/prediction``
@@ -30,7 +30,6 @@ forward-command convention; the runner's safe value when a step did not converge
 """
 
 import collections
-import signal
 import sys
 import threading
 import time
@@ -50,6 +49,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 from bb_friction_ros.config import bundled_config, ConfigError
+from bb_friction_ros.node_entry import install_handlers, Shutdown
 from bb_friction_ros.runner import (build_runner, InputAssembler, InputError,
                                     look_ahead_profile)
 
@@ -215,6 +215,8 @@ class FrictionNode(Node):
             # arrival order across the two topics, as a recorder (and replay) sees them
             batch.sort(key=lambda item: item[0])
             for _, is_state, (msg, info) in batch:
+                if self._stop:
+                    return
                 if is_state:
                     self._on_nut_state(msg, info)
                 else:
@@ -315,18 +317,20 @@ class FrictionNode(Node):
                     item = None
                 else:
                     item = self._queue.popleft()
-                    newest = not self._queue
+                    newest_stamp = self._queue[-1][0].stamp_s if self._queue else None
                     runner = self._runner
             if item is None:
                 self._publish_profile(seed)
                 continue
             sample, recv_ns, stamp = item
-            # The model fell behind: a step due on a sample already too old to answer is
-            # left to the newest one (the model then tracks the present, not its backlog).
-            stale = time.time_ns() - recv_ns > self._max_age_ns
+            # The model fell behind when its queue spans a model period or more: a step due
+            # now would be followed at once by another.  It is left to the newest sample (the
+            # model tracks the present, not its backlog).
+            behind = newest_stamp is not None \
+                and newest_stamp - sample.stamp_s >= runner.period_s
             resets = runner.stats.resets
             try:
-                pred = runner.process(sample, allow_step=newest or not stale)
+                pred = runner.process(sample, allow_step=not behind)
             except Exception as exc:     # one bad step must not kill the node
                 with self._lock:
                     self._rejected["model_error"] += 1
@@ -344,7 +348,13 @@ class FrictionNode(Node):
     def _publish_profile(self, seed_stamp):
         seed, stamp = seed_stamp
         horizon, points = self._profile_shape
-        out = look_ahead_profile(seed, horizon, points, should_stop=lambda: self._busy)
+        try:
+            out = look_ahead_profile(seed, horizon, points, should_stop=lambda: self._busy)
+        except Exception as exc:     # a failed look-ahead must not stop the answers
+            with self._lock:
+                self._rejected["profile_error"] += 1
+            self.get_logger().error(f"look-ahead profile failed: {exc!r}")
+            return
         if out is None:
             with self._lock:
                 self._profiles_abandoned += 1
@@ -518,8 +528,9 @@ class FrictionNode(Node):
             self._wake.notify_all()
         self._input_thread.join(timeout=5.0)
         self._thread.join(timeout=5.0)
-        for sub in self._inputs:
-            sub.destroy()
+        if not self._input_thread.is_alive():
+            for sub in self._inputs:
+                sub.destroy()
         return super().destroy_node()
 
 
@@ -670,14 +681,6 @@ def _prediction_dict(msg):
             "model_age_s": msg.model_age_s, "n_groups": msg.n_groups}
 
 
-class _Shutdown(Exception):
-    """SIGTERM arrived (raised in the main thread by our handler)."""
-
-
-def _raise_shutdown(signum, frame):
-    raise _Shutdown(signum)
-
-
 def main(args=None):
     """Console script ``friction_node`` (also ``bb-friction node``)."""
     # Two Python threads (executor, model) trade the GIL; at CPython's default 5 ms switch
@@ -686,13 +689,12 @@ def main(args=None):
     # A signal may come at any moment of start-up (loading numba and the friction maps takes
     # ~1 s): before rclpy.init its handlers do not exist, and after it they shut the context
     # down under a half-built node (RCLError "context is invalid").  Both end here, cleanly.
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, _raise_shutdown)
+    install_handlers()
     node = None
     try:
         try:
             rclpy.init(args=args)
-        except (KeyboardInterrupt, _Shutdown):
+        except (KeyboardInterrupt, Shutdown):
             raise
         except Exception as exc:       # e.g. an unreadable --params-file
             print(f"{NODE_NAME}: cannot start: {exc}", file=sys.stderr)
@@ -707,7 +709,7 @@ def main(args=None):
                 raise
             return 0            # the context was shut down by a signal during start-up
         rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException, _Shutdown):
+    except (KeyboardInterrupt, ExternalShutdownException, Shutdown):
         pass
     finally:
         try:
