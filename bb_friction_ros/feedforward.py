@@ -54,6 +54,7 @@ class FeedforwardInterpolator:
         lie (encoder noise, latency) before it counts as a reversal [rad].
     scale_with_load : bool
         Scale the torque by measured / profile axial load (see the module docstring).
+
     """
 
     def __init__(self, reversal_tolerance_rad=0.0, scale_with_load=False):

@@ -30,6 +30,7 @@ forward-command convention; the runner's safe value when a step did not converge
 """
 
 import collections
+import dataclasses
 import sys
 import threading
 import time
@@ -49,54 +50,42 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 from bb_friction_ros.config import bundled_config, ConfigError
-from bb_friction_ros.node_entry import install_handlers, Shutdown
+from bb_friction_ros.node_parameters import (MODEL_PARAMETERS, NODE_NAME, node_parameters,
+                                             NodeParameters, ros_type, RUNTIME)
 from bb_friction_ros.runner import (build_runner, InputAssembler, InputError,
                                     look_ahead_profile)
 
-NODE_NAME = "friction_node"
 GIL_SWITCH_INTERVAL_S = 2.5e-4
 # Topics this node publishes; another publisher on any of them is reported (two nodes?).
 OUTPUT_TOPICS = ("friction/prediction", "friction/feedforward",
                  "friction/feedforward_profile", "friction/contact_groups")
 
 
-def _float_param(lo, hi, doc):
-    return ParameterDescriptor(description=doc, floating_point_range=[
-        FloatingPointRange(from_value=float(lo), to_value=float(hi), step=0.0)])
+def _descriptor(f):
+    """ROS descriptor of a NodeParameters field: its meaning, unit and range."""
+    meta = f.metadata
+    unit = "" if meta["unit"] in (None, "1") else f" [{meta['unit']}]"
+    desc = ParameterDescriptor(description=meta["doc"] + unit)
+    kind = ros_type(f)
+    if kind is float:
+        desc.floating_point_range = [FloatingPointRange(
+            from_value=float(meta["lo"]), to_value=float(meta["hi"]), step=0.0)]
+    elif kind is int:
+        desc.integer_range = [IntegerRange(from_value=int(meta["lo"]), to_value=int(meta["hi"]),
+                                           step=1)]
+    return desc
 
 
-def _int_param(lo, hi, doc):
-    return ParameterDescriptor(description=doc, integer_range=[
-        IntegerRange(from_value=int(lo), to_value=int(hi), step=1)])
+PARAMETERS = {f.name: (f.default, _descriptor(f))     # name: (default, descriptor)
+              for f in dataclasses.fields(NodeParameters)}
 
 
-PARAMETERS = {   # name: (default, descriptor)
-    "config_file": ("", ParameterDescriptor(
-        description="ball-screw YAML (empty: the bundled config/ball_screw.yaml)")),
-    "nut_joint": ("nut_joint", ParameterDescriptor(
-        description="name of the nut joint in nut_state")),
-    "model_rate_hz": (100.0, _float_param(1.0, 2000.0, "whole-screw model steps per second "
-                                          "of input time")),
-    "queue_size": (256, _int_param(1, 100000, "inputs waiting for the model thread; when "
-                                   "full the oldest is dropped (newest wins)")),
-    "groups_rate_hz": (10.0, _float_param(0.1, 1000.0, "contact-group status rate")),
-    "diagnostics_rate_hz": (1.0, _float_param(0.1, 100.0, "diagnostics rate")),
-    "max_axial_load_n": (1.0e5, _float_param(1.0, 1.0e7, "loads above this are rejected "
-                                             "as absurd [N]")),
-    "reliable_qos": (False, ParameterDescriptor(
-        description="inputs with reliable QoS instead of the sensor-data profile")),
-    "max_answer_age_s": (0.02, _float_param(1e-4, 10.0, "largest age of an answer, from "
-                                            "the input's arrival to publication; older "
-                                            "answers are shed and counted [s]")),
-    "profile_horizon_periods": (2.0, _float_param(2.0, 20.0, "look-ahead profile length "
-                                                  "in model periods of motion")),
-    "profile_points": (3, _int_param(2, 64, "points of the look-ahead profile (the first "
-                                     "is the step's own angle)")),
-}
-RUNTIME = {"nut_joint", "model_rate_hz", "groups_rate_hz", "max_axial_load_n", "config_file",
-           "max_answer_age_s", "profile_horizon_periods", "profile_points"}
 # declared by rclpy itself for every node
 _BUILTIN_PARAMETERS = {"use_sim_time", "start_type_description_service"}
+
+
+def _model_file(params):
+    return params.config_file or bundled_config("ball_screw.yaml")
 
 
 class FrictionNode(Node):
@@ -110,7 +99,7 @@ class FrictionNode(Node):
                 self.declare_parameter(name, default, desc)
             except Exception as exc:   # rclpy raises several types for a bad override
                 raise ConfigError(f"{NODE_NAME}.{name}: {exc}") from exc
-        p = {name: self.get_parameter(name).value for name in PARAMETERS}
+        p = node_parameters({name: self.get_parameter(name).value for name in PARAMETERS})
         self.unknown_parameters = sorted(
             set(getattr(self, "_parameter_overrides", {})) - set(PARAMETERS)
             - _BUILTIN_PARAMETERS)
@@ -119,27 +108,23 @@ class FrictionNode(Node):
                                       f"{', '.join(PARAMETERS)})")
         self._lock = threading.Lock()
         self._wake = threading.Condition(self._lock)
-        self._queue = collections.deque(maxlen=int(p["queue_size"]))
+        self._queue = collections.deque(maxlen=p.queue_size)
         self._busy = False          # the model thread owns the runner until it clears this
         self._profile_seed = None
-        try:
-            self._assembler = InputAssembler(p["nut_joint"], p["max_axial_load_n"])
-        except ValueError as exc:
-            raise ConfigError(f"{NODE_NAME}.nut_joint: {exc}") from exc
-        self._runner = build_runner(p["config_file"] or bundled_config("ball_screw.yaml"),
-                                    p["model_rate_hz"])
-        self._max_age_ns = int(p["max_answer_age_s"] * 1e9)
-        self._profile_shape = (float(p["profile_horizon_periods"]), int(p["profile_points"]))
+        self._runner = build_runner(_model_file(p), p.model_rate_hz)
+        self._assembler = InputAssembler(p.nut_joint, p.max_axial_load_n)
+        self._pending = None    # (parameters, runner, names) validated, applied after the set
+        self._max_age_ns = int(p.max_answer_age_s * 1e9)
+        self._profile_shape = (p.profile_horizon_periods, p.profile_points)
         self._dropped = 0
         self._shed = 0
         self._shed_at_diag = 0
-        self._rejected = collections.Counter()
-        self._rejected_states = 0
         self._received = collections.Counter()
         self._published = 0
         self._inline = 0
         self._profiles = 0
         self._profiles_abandoned = 0
+        self._profile_errors = 0
         self._ff_held = 0
         self._latest = None
         self._latest_stamp = None
@@ -152,9 +137,8 @@ class FrictionNode(Node):
 
         # Sensor-data semantics (best effort, volatile) with the depth of our own queue: the
         # profile's depth of 5 dropped ~1 % of inputs at 1 kHz while the executor waited.
-        # Inputs older than max_answer_age_s when taken are shed (counted), not answered.
-        qos = QoSProfile(depth=int(p["queue_size"]), durability=DurabilityPolicy.VOLATILE,
-                         reliability=(ReliabilityPolicy.RELIABLE if p["reliable_qos"]
+        qos = QoSProfile(depth=p.queue_size, durability=DurabilityPolicy.VOLATILE,
+                         reliability=(ReliabilityPolicy.RELIABLE if p.reliable_qos
                                       else ReliabilityPolicy.BEST_EFFORT))
         # our own values are floats by construction: no per-field checks (see _answer)
         self._out_input, self._out_model = (
@@ -178,9 +162,11 @@ class FrictionNode(Node):
         for sub in self._inputs:
             if sub in getattr(self, "_subscriptions", ()):
                 self._subscriptions.remove(sub)
-        self._groups_timer = self.create_timer(1.0 / p["groups_rate_hz"], self._publish_groups)
-        self.create_timer(1.0 / p["diagnostics_rate_hz"], self._publish_diagnostics)
+        self._groups_timer = self.create_timer(1.0 / p.groups_rate_hz, self._publish_groups)
+        self.create_timer(1.0 / p.diagnostics_rate_hz, self._publish_diagnostics)
+        # rclpy's pattern: validate in the on-set callback, apply in the post-set one
         self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.add_post_set_parameters_callback(self._after_set_parameters)
         self._thread = threading.Thread(target=self._model_loop, name="friction_model",
                                         daemon=True)
         self._thread.start()
@@ -232,8 +218,7 @@ class FrictionNode(Node):
                 sample = self._assembler.on_nut_state(stamp.sec + 1e-9 * stamp.nanosec,
                                                       msg.name, msg.position, msg.velocity)
             except InputError as err:
-                self._rejected[err.reason] += 1
-                self._rejected_states += 1
+                self._runner.reject(err.reason, nut_state=True)
                 return
             runner = self._runner
             if self._busy or runner.step_due(sample):
@@ -249,7 +234,11 @@ class FrictionNode(Node):
         # No step due and the model thread idle (only this thread makes it busy): answer
         # from the latest state at once.
         self._inline += 1
-        self._answer(runner.process(sample), recv_ns, stamp, self._out_input)
+        pred = runner.process(sample)
+        if pred is None:        # counted by the runner as model_error
+            self._model_error(runner)
+            return
+        self._answer(pred, recv_ns, stamp, self._out_input)
 
     def _on_axial_load(self, msg):
         with self._lock:
@@ -257,7 +246,7 @@ class FrictionNode(Node):
             try:
                 self._assembler.on_axial_load(msg.wrench.force.z)
             except InputError as err:
-                self._rejected[err.reason] += 1
+                self._runner.reject(err.reason)
 
     def _answer(self, pred, recv_ns, stamp, out):
         """
@@ -329,21 +318,22 @@ class FrictionNode(Node):
             behind = newest_stamp is not None \
                 and newest_stamp - sample.stamp_s >= runner.period_s
             resets = runner.stats.resets
-            try:
-                pred = runner.process(sample, allow_step=not behind)
-            except Exception as exc:     # one bad step must not kill the node
-                with self._lock:
-                    self._rejected["model_error"] += 1
-                self.get_logger().error(f"model step failed: {exc!r}; state reset")
-                runner.reset()
+            pred = runner.process(sample, allow_step=not behind)
+            if pred is None:             # counted by the runner as model_error
+                self._model_error(runner)
                 continue
             if runner.stats.resets != resets:
-                self._reset_note = (f"input stamps went backwards at {sample.stamp_s:.6f}"
-                                    " s: model state reset")
-                self.get_logger().warning(self._reset_note)
+                note = (f"input stamps went backwards at {sample.stamp_s:.6f} s: model "
+                        "state reset")
+                with self._lock:
+                    self._reset_note = note
+                self.get_logger().warning(note)
             if pred.stepped:
                 self._profile_seed = (runner.profile_seed(sample), stamp)
             self._answer(pred, recv_ns, stamp, self._out_model)
+
+    def _model_error(self, runner):
+        self.get_logger().error(f"model step failed: {runner.stats.last_error}; state reset")
 
     def _publish_profile(self, seed_stamp):
         seed, stamp = seed_stamp
@@ -352,7 +342,7 @@ class FrictionNode(Node):
             out = look_ahead_profile(seed, horizon, points, should_stop=lambda: self._busy)
         except Exception as exc:     # a failed look-ahead must not stop the answers
             with self._lock:
-                self._rejected["profile_error"] += 1
+                self._profile_errors += 1
             self.get_logger().error(f"look-ahead profile failed: {exc!r}")
             return
         if out is None:
@@ -370,6 +360,7 @@ class FrictionNode(Node):
         self._pub_profile.publish(msg)
         with self._lock:
             self._profiles += 1
+
     def _publish_groups(self):
         with self._lock:
             pred, stamp = self._latest, self._latest_stamp
@@ -414,14 +405,15 @@ class FrictionNode(Node):
                 "answered_inline": self._inline,
                 "profiles": self._profiles,
                 "profiles_abandoned": self._profiles_abandoned,
+                "profile_errors": self._profile_errors,
                 "resets": stats.resets,
                 "lag_s": 0.0 if latest is None else latest.model_age_s,
                 "received_nut_state": self._received["nut_state"],
                 "received_axial_load": self._received["axial_load"],
-                "rejected_total": sum(self._rejected.values()),
-                "rejected_nut_state": self._rejected_states,
+                "rejected_total": sum(stats.rejected.values()),
+                "rejected_nut_state": stats.rejected_nut_state,
             }
-            for reason, n in sorted(self._rejected.items()):
+            for reason, n in sorted(stats.rejected.items()):
                 values[f"rejected_{reason}"] = n
             for topic, n in sorted(self._other_publishers.items()):
                 values[f"publishers_{topic}"] = n
@@ -471,12 +463,16 @@ class FrictionNode(Node):
         if values["rejected_total"] or values["dropped_inputs"]:
             notes.append(f"{values['rejected_total']} inputs rejected, "
                          f"{values['dropped_inputs']} dropped")
+        if values["profile_errors"]:
+            notes.append(f"{values['profile_errors']} look-ahead profiles failed")
         for topic, n in sorted(others.items()):
             notes.append(f"{n} publishers on {topic} (another friction_node?)")
         if self.unknown_parameters:
             notes.append("unknown parameters ignored: " + ", ".join(self.unknown_parameters))
-        if self._reset_note:
-            notes.append(self._reset_note)
+        with self._lock:     # a reset is reported in the one status after it, then cleared
+            note, self._reset_note = self._reset_note, ""
+        if note:
+            notes.append(note)
         status.level = DiagnosticStatus.WARN if notes else DiagnosticStatus.OK
         status.message = "; ".join(notes) if notes else "ok"
         status.values = [KeyValue(key=k, value=f"{v:.6g}" if isinstance(v, float) else str(v))
@@ -487,39 +483,45 @@ class FrictionNode(Node):
 
     # --- parameters -----------------------------------------------------------------------
     def _on_set_parameters(self, params):
+        """Validate a parameter change (types, ranges, the model file); change nothing."""
+        self._pending = None
         for prm in params:
             if prm.name not in RUNTIME:
                 return SetParametersResult(successful=False,
                                            reason=f"{prm.name}: not changeable at runtime")
+        updates = {prm.name: prm.value for prm in params}
+        current = {name: self.get_parameter(name).value for name in PARAMETERS}
         try:
-            updates = {prm.name: prm.value for prm in params}
-            if "nut_joint" in updates and (not isinstance(updates["nut_joint"], str)
-                                           or not updates["nut_joint"].strip()):
-                raise ValueError(f"nut_joint must be a non-empty joint name, got "
-                                 f"{updates['nut_joint']!r}")
+            new = node_parameters(updates, node_parameters(current))
             runner = None
-            if "config_file" in updates or "model_rate_hz" in updates:
-                cfg = updates.get("config_file", self.get_parameter("config_file").value)
-                rate = updates.get("model_rate_hz", self.get_parameter("model_rate_hz").value)
-                runner = build_runner(cfg or bundled_config("ball_screw.yaml"), rate)
-        except (ConfigError, ValueError) as exc:
+            if MODEL_PARAMETERS & updates.keys():
+                runner = build_runner(_model_file(new), new.model_rate_hz)
+        except ConfigError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
+        except Exception as exc:     # a model that cannot be built: refused, node lives
+            return SetParametersResult(successful=False,
+                                       reason=f"config_file: cannot build the model ({exc!r})")
+        self._pending = (new, runner, set(updates))
+        return SetParametersResult(successful=True)
+
+    def _after_set_parameters(self, params):
+        """Apply the change validated by _on_set_parameters."""
+        if self._pending is None:
+            return
+        new, runner, changed = self._pending
+        self._pending = None
         with self._lock:
             if runner is not None:
+                # counters go on across the swap: diagnostics stay cumulative and the model
+                # rate window keeps its base (a new runner's zero gave one negative rate)
+                runner.stats = self._runner.stats
                 self._runner = runner
-            if "nut_joint" in updates:
-                self._assembler.nut_joint = updates["nut_joint"]
-            if "max_axial_load_n" in updates:
-                self._assembler.max_axial_load_n = updates["max_axial_load_n"]
-            if "max_answer_age_s" in updates:
-                self._max_age_ns = int(updates["max_answer_age_s"] * 1e9)
-            if {"profile_horizon_periods", "profile_points"} & set(updates):
-                self._profile_shape = (
-                    float(updates.get("profile_horizon_periods", self._profile_shape[0])),
-                    int(updates.get("profile_points", self._profile_shape[1])))
-        if "groups_rate_hz" in updates:
-            self._groups_timer.timer_period_ns = int(1e9 / updates["groups_rate_hz"])
-        return SetParametersResult(successful=True)
+            self._assembler.nut_joint = new.nut_joint
+            self._assembler.max_axial_load_n = new.max_axial_load_n
+            self._max_age_ns = int(new.max_answer_age_s * 1e9)
+            self._profile_shape = (new.profile_horizon_periods, new.profile_points)
+        if "groups_rate_hz" in changed:
+            self._groups_timer.timer_period_ns = int(1e9 / new.groups_rate_hz)
 
     def destroy_node(self):
         """Stop the input and model threads, then destroy the node."""
@@ -682,19 +684,20 @@ def _prediction_dict(msg):
 
 
 def main(args=None):
-    """Console script ``friction_node`` (also ``bb-friction node``)."""
+    """Run friction_node (entered through ``node_entry.main``: console script and CLI)."""
     # Two Python threads (executor, model) trade the GIL; at CPython's default 5 ms switch
     # interval each handoff can wait up to 5 ms (measured: bench/bench_node.py).
     sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)
     # A signal may come at any moment of start-up (loading numba and the friction maps takes
     # ~1 s): before rclpy.init its handlers do not exist, and after it they shut the context
-    # down under a half-built node (RCLError "context is invalid").  Both end here, cleanly.
-    install_handlers()
+    # down under a half-built node (RCLError "context is invalid").  The entry point
+    # (node_entry.main) turns SIGTERM into a KeyboardInterrupt before importing this module;
+    # both end here, cleanly.
     node = None
     try:
         try:
             rclpy.init(args=args)
-        except (KeyboardInterrupt, Shutdown):
+        except KeyboardInterrupt:
             raise
         except Exception as exc:       # e.g. an unreadable --params-file
             print(f"{NODE_NAME}: cannot start: {exc}", file=sys.stderr)
@@ -709,7 +712,7 @@ def main(args=None):
                 raise
             return 0            # the context was shut down by a signal during start-up
         rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException, Shutdown):
+    except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
         try:

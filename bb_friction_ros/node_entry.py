@@ -12,8 +12,13 @@ import sys
 import threading
 
 
-class Shutdown(Exception):
-    """SIGTERM arrived; raised in the main thread by ``raise_shutdown``."""
+class Shutdown(KeyboardInterrupt):
+    """
+    SIGTERM arrived; raised in the main thread by ``raise_shutdown``.
+
+    A KeyboardInterrupt, so ``node.main`` ends on it as on SIGINT without importing this
+    module (the node must not import its own entry point: layers, test_layers.py).
+    """
 
 
 def raise_shutdown(signum, frame):
@@ -32,7 +37,7 @@ def main(args=None):
     install_handlers()
     try:
         from bb_friction_ros.node import main as node_main
-    except (KeyboardInterrupt, Shutdown):
+    except KeyboardInterrupt:       # SIGINT or SIGTERM (Shutdown) while importing
         return 0
     return node_main(args)
 

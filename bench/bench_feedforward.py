@@ -1,5 +1,7 @@
 """
-Feedforward accuracy at 1 kHz: zero-order hold vs the look-ahead profile (issue #11); asserts nothing.
+Feedforward accuracy at 1 kHz: zero-order hold vs the look-ahead profile (issue #11).
+
+Asserts nothing; prints the table.
 
 Input: a 1 kHz nut-state stream at constant speed (1, 5, 10, 20 rev/s) with the axial load
 varying as 1500 + 300 sin(2 pi 2 t) N.  Ground truth: the whole-screw model stepped at every
