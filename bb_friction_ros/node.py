@@ -51,7 +51,8 @@ from std_msgs.msg import Float64MultiArray
 
 from bb_friction_ros.config import bundled_config, ConfigError
 from bb_friction_ros.node_parameters import (MODEL_PARAMETERS, NODE_NAME, node_parameters,
-                                             NodeParameters, ros_type, RUNTIME)
+                                             NodeParameters, ros_type, RUNTIME,
+                                             unknown_parameters)
 from bb_friction_ros.runner import (build_runner, InputAssembler, InputError,
                                     look_ahead_profile)
 
@@ -80,10 +81,6 @@ PARAMETERS = {f.name: (f.default, _descriptor(f))     # name: (default, descript
               for f in dataclasses.fields(NodeParameters)}
 
 
-# declared by rclpy itself for every node
-_BUILTIN_PARAMETERS = {"use_sim_time", "start_type_description_service"}
-
-
 def _model_file(params):
     return params.config_file or bundled_config("ball_screw.yaml")
 
@@ -100,9 +97,8 @@ class FrictionNode(Node):
             except Exception as exc:   # rclpy raises several types for a bad override
                 raise ConfigError(f"{NODE_NAME}.{name}: {exc}") from exc
         p = node_parameters({name: self.get_parameter(name).value for name in PARAMETERS})
-        self.unknown_parameters = sorted(
-            set(getattr(self, "_parameter_overrides", {})) - set(PARAMETERS)
-            - _BUILTIN_PARAMETERS)
+        self.unknown_parameters = unknown_parameters(getattr(self, "_parameter_overrides",
+                                                             {}))
         for name in self.unknown_parameters:
             self.get_logger().warning(f"unknown parameter {name!r} ignored (known: "
                                       f"{', '.join(PARAMETERS)})")
