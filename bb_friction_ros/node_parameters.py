@@ -61,6 +61,13 @@ RUNTIME = frozenset({"nut_joint", "model_rate_hz", "groups_rate_hz", "max_axial_
                      "profile_points"})
 MODEL_PARAMETERS = frozenset({"config_file", "model_rate_hz"})
 FIELDS = {f.name: f for f in dataclasses.fields(NodeParameters)}
+# declared by rclpy itself for every node: in a params file, neither ours nor unknown
+ROS_BUILTIN_PARAMETERS = frozenset({"use_sim_time", "start_type_description_service"})
+
+
+def unknown_parameters(names):
+    """Return, sorted, the names that are neither the node's parameters nor ROS's own."""
+    return sorted(set(names) - set(FIELDS) - ROS_BUILTIN_PARAMETERS)
 
 
 def ros_type(f):
@@ -89,12 +96,14 @@ def node_parameters(values, base=NodeParameters()):
     return dataclasses.replace(base, **values)
 
 
-def load_params_file(path):
+def load_params_file(path, on_unknown=None):
     """
     Return the NodeParameters of a ROS params file (``friction_node: ros__parameters:``).
 
     Other nodes' sections and ROS's own parameters (``use_sim_time``...) are ignored, as
     the node ignores them; a value of the node is checked exactly as the node checks it.
+    ``on_unknown(name)`` is called for each other name in the node's section (a misspelt
+    parameter; the node warns about it too).
     """
     data = load_yaml(path)
     params = {}
@@ -105,4 +114,7 @@ def load_params_file(path):
             if not isinstance(params, dict):
                 raise ConfigError(f"{path}: {key}.ros__parameters: expected a mapping, got "
                                   f"{type(params).__name__}")
+    if on_unknown is not None:
+        for name in unknown_parameters(params):
+            on_unknown(name)
     return node_parameters({k: v for k, v in params.items() if k in FIELDS})
