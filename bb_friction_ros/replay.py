@@ -202,8 +202,9 @@ class _OutputBag:
             model_age_s=pred.model_age_s, n_groups=len(pred.groups))
         self._write(PREDICTION_TOPIC[0], stamp, msg)
         layout = t["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0)
+        # the runner's safe value (held or 0 after a step that did not converge), as the node
         self._write(FEEDFORWARD_TOPIC[0], stamp, t[FEEDFORWARD_TOPIC[1]](
-            layout=layout, data=np.array([pred.torque_total_nm], dtype=np.float64)))
+            layout=layout, data=np.array([pred.feedforward_nm], dtype=np.float64)))
         if pred.groups != self._last_groups:
             # The node publishes groups on change (and repeats them on a wall-clock timer,
             # which carries no new information and no input stamp: not reproduced here).

@@ -444,8 +444,9 @@ class FrictionNodeHarness:
 
 
 def _taken(values):
-    """Nut states the node has dealt with: answered, rejected or dropped (queue full)."""
-    return values["published"] + values["rejected_nut_state"] + values["dropped_inputs"]
+    """Nut states the node has dealt with: answered, shed (too old), rejected or dropped."""
+    return (values["published"] + values["shed_inputs"] + values["rejected_nut_state"]
+            + values["dropped_inputs"])
 
 
 def stamp_msg(stamp_s):
@@ -469,7 +470,14 @@ def prediction_dict(msg):
 
 def play_through_node(events, parameters=None, context=None, speed=1.0,
                       settle_s=DEFAULT_TIMEOUT_S, lockstep=False):
-    """Play ``events`` through a fresh in-process friction_node (see FrictionNodeHarness.play)."""
+    """
+    Play ``events`` through a fresh in-process friction_node (see FrictionNodeHarness.play).
+
+    With ``lockstep`` (exact comparisons, not timing) no answer is too old to publish:
+    ``max_answer_age_s`` is 10 s unless ``parameters`` set it.
+    """
+    if lockstep:
+        parameters = {"max_answer_age_s": 10.0, **(parameters or {})}
     with FrictionNodeHarness(parameters, context=context) as harness:
         return harness.play(events, speed=speed, lockstep=lockstep, settle_s=settle_s)
 

@@ -8,8 +8,9 @@ Each figure is the peak RSS of a child process (``wait4``), and two baselines ar
 the same run: a child that only reads every message of the bag with rosbags (the floor any
 reader pays), and the same replay of a 6-second bag from the same generator (replay's fixed
 cost: numpy, scipy, numba, matplotlib, the compiled model; about 270 MB here).  The long
-replay's excess over the short one is what the recording's length costs.  ``--bb-friction PATH`` measures another installation (e.g. an older checkout's
-``.venv/bin/bb-friction``) on the same bag.
+replay's excess over the short one is what the recording's length costs.  ``--bb-friction
+PATH`` measures another installation (e.g. an older checkout's ``.venv/bin/bb-friction``) on
+the same bag.
 
 Usage: .venv/bin/python bench/bench_replay.py [--minutes 10] [--workdir out/bench_replay]
        [--bb-friction PATH] [--no-bag]

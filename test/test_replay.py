@@ -141,6 +141,30 @@ def test_replay_bag_decodes_with_the_mcap_library_alone(tmp_path):
     assert topics["/nut_state"][0][2].name == ["nut_joint"]
 
 
+def test_replay_bag_feedforward_is_the_safe_value_of_unconverged_steps(tmp_path):
+    """Finding 2: the output bag's feedforward carries the runner's safe value, as the node."""
+    from rosbags.rosbag2 import Reader
+    from bb_friction_ros.bags import friction_typestore
+    from bb_friction_ros.replay import _OutputBag
+    from bb_friction_ros.runner import Prediction
+    good = Prediction(1.0, 0.0, 6.0, 1500.0, 0.21, 0.2, 0.01, 0.0, True, 0.0, (), 37, True,
+                      feedforward_nm=0.21)
+    bad = Prediction(1.01, 0.06, 6.0, 2e4, -58.0, -50.0, -8.0, 0.0, False, 0.0, (), 37, True,
+                     feedforward_nm=0.21, feedforward_held=True)
+    out = _OutputBag(tmp_path / "bag", [])
+    for pred in (good, bad):
+        out.publish(pred, int(round(pred.stamp_s * 1e9)), 0.001)
+    out.close()
+    store = friction_typestore()
+    got = {}
+    with Reader(tmp_path / "bag") as reader:
+        for conn, _, raw in reader.messages():
+            got.setdefault(conn.topic, []).append(store.deserialize_cdr(raw, conn.msgtype))
+    assert [m.data[0] for m in got["/friction/feedforward"]] == [0.21, 0.21]
+    assert [(m.converged, m.torque_total_nm) for m in got["/friction/prediction"]] == \
+        [(True, 0.21), (False, -58.0)]
+
+
 def test_replay_no_bag_writes_only_csv_summary_and_plots(tmp_path):
     _, code = _replay_short(tmp_path, extra=("--no-bag",))
     assert code == 0
