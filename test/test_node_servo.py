@@ -20,10 +20,11 @@ from rclpy.parameter import Parameter
 
 from bb_friction_ros.bags import Event
 from bb_friction_ros.config import ConfigError
-from bb_friction_ros.node import FrictionNode, play_through_node
+from bb_friction_ros.node import FrictionNode
 from bb_friction_ros.config import bundled_config
 from bb_friction_ros.replay import run_events
 from bb_friction_ros.runner import build_runner, InputAssembler
+from bb_friction_ros.testing import play_through_node
 from test_feedforward import ScriptedScrew
 
 
