@@ -146,6 +146,42 @@ class SolverSettings:
                                    hi=8192)
 
 
+LOAD_DISTRIBUTIONS = ("rigid", "elastic")
+SHAFT_LOAD_ENDS = ("track_start", "track_end")
+NUT_SUPPORTS = ("outer_surface", "flange_at_track_start", "flange_at_track_end")
+
+
+@dataclasses.dataclass(frozen=True)
+class ElasticBodies:
+    """
+    Bulk axial deformation of screw shaft and nut (``load_distribution: elastic``; ref. [19]).
+
+    Shaft and nut are axial bars between neighbouring balls: the stiffness of a segment one
+    ball pitch long is E A / (ball pitch), with E A the axial rigidity below.  Defaults:
+    Sec. 3.4's set-up (docs/assumptions_ball_screw.md, "Elastic load distribution").
+    """
+
+    shaft_axial_rigidity_n: float = field(1.2257e8, "N", "axial rigidity E A of the screw "
+                                          "shaft (E = 210 GPa, root diameter 27.27 mm of "
+                                          "the Table 4 Gothic-arch groove)", lo=0.0,
+                                          lo_open=True)
+    nut_axial_rigidity_n: float = field(2.7014e8, "N", "axial rigidity E A of the nut body "
+                                        "(E = 210 GPa, outer diameter 56 mm, groove root "
+                                        "diameter 38.73 mm; used with a flange support)",
+                                        lo=0.0, lo_open=True)
+    shaft_load_end: str = dataclasses.field(default="track_start")
+    nut_support: str = dataclasses.field(default="outer_surface")
+
+    def check(self, path):
+        """The two choices are named, not numbers."""
+        if self.shaft_load_end not in SHAFT_LOAD_ENDS:
+            raise ConfigError(f"{path}.shaft_load_end: must be one of "
+                              f"{', '.join(SHAFT_LOAD_ENDS)}, got {self.shaft_load_end!r}")
+        if self.nut_support not in NUT_SUPPORTS:
+            raise ConfigError(f"{path}.nut_support: must be one of {', '.join(NUT_SUPPORTS)}"
+                              f", got {self.nut_support!r}")
+
+
 @dataclasses.dataclass(frozen=True)
 class BallScrewConfig:
     """Complete ball screw configuration (key ``ball_screw`` of config/ball_screw.yaml)."""
@@ -156,6 +192,17 @@ class BallScrewConfig:
     track: NutTrack = dataclasses.field(default_factory=NutTrack)
     operation: Operation = dataclasses.field(default_factory=Operation)
     solver: SolverSettings = dataclasses.field(default_factory=SolverSettings)
+    elastic: ElasticBodies = dataclasses.field(default_factory=ElasticBodies)
+    # 'rigid': rigid nut and shaft, all balls share W through one nut displacement;
+    # 'elastic': shaft and nut deform axially between balls (ref. [19]), see ElasticBodies.
+    load_distribution: str = dataclasses.field(default="rigid")
+
+    def check(self, path):
+        """``load_distribution`` is one of the named models."""
+        if self.load_distribution not in LOAD_DISTRIBUTIONS:
+            raise ConfigError(f"{path}.load_distribution: must be one of "
+                              f"{', '.join(LOAD_DISTRIBUTIONS)}, got "
+                              f"{self.load_distribution!r}")
 
 
 def _merge(base, extra):

@@ -19,9 +19,11 @@ power omega_N T_f and the total loss (equal to solver precision), every ball's a
 omega_B, contact loads, and the B2B contact groups (ball ids rear-first with their forces).
 
 Model: N balls on a closed loop of ``loaded_turns`` turns in the nut (the return tube has
-zero length, so the first and last balls are neighbours); the nut is rigid and carries W
-through its axial displacement, shared by all balls; bulk elastic deformation of screw and
-nut is left out.  Balls never overlap: after each advance, overlaps are removed by the L2
+zero length, so the first and last balls are neighbours).  The axial load W reaches the balls
+either through a rigid nut and shaft (``load_distribution: rigid``: one nut displacement
+shared by all balls) or through shaft and nut bars that deform axially between the balls
+(``elastic``, ref. [19]; ``load_distribution.py``), so that each ball's load varies along the
+nut.  Balls never overlap: after each advance, overlaps are removed by the L2
 projection onto non-overlapping positions (pool-adjacent-violators on the ring).  Contacts
 close and open by the exact complementarity of Eq. (61) (``solver``).
 
@@ -47,6 +49,7 @@ import numpy as np
 
 from bb_friction_ros.ball_screw import geometry as geo
 from bb_friction_ros.ball_screw import kernel
+from bb_friction_ros.ball_screw.load_distribution import elastic_load_path
 from bb_friction_ros.ball_screw.screw_model import ScrewModel
 
 _TINY = float(np.finfo(float).tiny)
@@ -73,6 +76,7 @@ class StepResult:
     loads_n: np.ndarray
     b2b_forces_n: np.ndarray          # per ring pair (ball j, ball j+1), 0 if open
     groups: list = field(default_factory=list)   # [(ball ids rear-first, forces)]
+    ball_axial_loads_n: np.ndarray = None   # per ball: its axial force on the nut (sum = W)
     iterations: int = 0
     solve_time_s: float = 0.0
 
@@ -169,7 +173,8 @@ class WholeScrew:
             drive_power_w=0.0, loss_w=0.0, converged=True, power_balance_error=0.0,
             azimuth_rad=self.track_azimuth(), theta_rad=self._centres(
                 self.track_azimuth())[0], omega_b_rad_s=self.ratio * omega_n,
-            loads_n=np.zeros((self.n, 4)), b2b_forces_n=np.zeros(self.n))
+            loads_n=np.zeros((self.n, 4)), b2b_forces_n=np.zeros(self.n),
+            ball_axial_loads_n=np.zeros(self.n))
 
     def step(self, nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s):
         """Advance the balls to the measured nut angle and solve the equilibrium there."""
@@ -191,6 +196,10 @@ class WholeScrew:
         theta, centres, shifts = self._centres(phi)
         pair_idx, rear, front = self._pairs(sign)
         scale = self.model.force_scale(self.n, load_w)
+        elastic = None
+        if self.config.load_distribution == "elastic":
+            elastic = elastic_load_path(phi, self.config.geometry.lead_m,
+                                        self.config.elastic, load_w, scale)
         load_sign = 1.0 if load_w >= 0.0 else -1.0
         sol = None
         prev = None
@@ -205,7 +214,7 @@ class WholeScrew:
                 faster = gx[rear, 2] * sign > gx[front, 2] * sign
                 active = (self._active[pair_idx] & (gf[pair_idx] > 0.0)) | faster
                 sol = self.model.solver.solve(gx, gu, centres, sign, load_w, scale, rear,
-                                              front, active, gf[pair_idx], budget)
+                                              front, active, gf[pair_idx], budget, elastic)
                 iterations += sol.iterations
                 if sol.converged or sol.budget_exhausted:
                     # Real-time mode: an unfinished iterate is returned, converged = False.
@@ -215,7 +224,8 @@ class WholeScrew:
             free = self.model.cold_solve(*shifts, sign, load_w)
             ratio = free.x[:, 2] * sign
             sol = self.model.solver.solve(free.x, free.u, centres, sign, load_w, scale, rear,
-                                          front, ratio[rear] > ratio[front])
+                                          front, ratio[rear] > ratio[front],
+                                          elastic=elastic)
             sol.converged = sol.converged and free.converged
             iterations += sol.iterations
         sol.iterations = iterations
@@ -281,5 +291,6 @@ class WholeScrew:
             power_balance_error=abs(drive - loss) / max(loss, _TINY),
             azimuth_rad=phi, theta_rad=theta, omega_b_rad_s=self.ratio * omega_n,
             loads_n=sol.terms["load"].copy(), b2b_forces_n=self._forces.copy(),
-            groups=groups, iterations=sol.iterations,
+            groups=groups, ball_axial_loads_n=-sol.terms["axial"].copy(),
+            iterations=sol.iterations,
             solve_time_s=time.perf_counter() - t0)
