@@ -57,10 +57,11 @@ class GeometricErrors:
     ball centre, beta_SL = beta_0 - theta, beta_SR = beta_0 + theta.
     """
 
-    theta_amplitude_rad: float = field(3.0 * _DEG, "rad", "amplitude of the sinusoidal "
+    theta_amplitude_rad: float = field(3.44 * _DEG, "rad", "amplitude of the sinusoidal "
                                        "screw contact-angle deviation theta(phi) (Fig. 19; "
-                                       "not given in the paper, see docs)", lo=0.0,
-                                       hi=10.0 * _DEG)
+                                       "not given in the paper: calibrated to Fig. 21's "
+                                       "peak B2B share by the bundled sweep, see docs)",
+                                       lo=0.0, hi=10.0 * _DEG)
     theta_cycles_per_rev: float = field(2.0, "1", "cycles of theta per screw revolution "
                                         "(four cycles over the two loaded turns)", lo=0.0,
                                         hi=100.0)
@@ -161,11 +162,11 @@ class ElasticBodies:
     Sec. 3.4's set-up (docs/assumptions_ball_screw.md, "Elastic load distribution").
     """
 
-    shaft_axial_rigidity_n: float = field(1.2257e8, "N", "axial rigidity E A of the screw "
+    shaft_axial_rigidity_n: float = field(1.2262e8, "N", "axial rigidity E A of the screw "
                                           "shaft (E = 210 GPa, root diameter 27.27 mm of "
                                           "the Table 4 Gothic-arch groove)", lo=0.0,
                                           lo_open=True)
-    nut_axial_rigidity_n: float = field(2.7014e8, "N", "axial rigidity E A of the nut body "
+    nut_axial_rigidity_n: float = field(2.6979e8, "N", "axial rigidity E A of the nut body "
                                         "(E = 210 GPa, outer diameter 56 mm, groove root "
                                         "diameter 38.73 mm; used with a flange support)",
                                         lo=0.0, lo_open=True)

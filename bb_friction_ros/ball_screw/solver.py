@@ -177,7 +177,9 @@ class EquilibriumSolver:
 
         Rates frozen; unknowns (xi, zeta) per ball and u; equations F_x, F_z per ball and the
         axial balance.  Brings the ball into its (three-point) contact state before the
-        weakly determined spin about the loaded diagonal is touched (notes' advice 1-3).
+        weakly determined spin about the loaded diagonal is touched (geometry first with mu = 0
+        and the rates frozen, then the rates, then everything: the order that converged for an
+        independent re-implementation, docs/assumptions_ball_screw.md, Solver).
         """
         st = self.settings
         rows, cols = [0, 2], [0, 1]
