@@ -147,6 +147,27 @@ class SolverSettings:
                                    hi=8192)
 
 
+@dataclasses.dataclass(frozen=True)
+class ValidityRange:
+    """
+    The loads inside which the model's assumptions hold (docs/assumptions_ball_screw.md).
+
+    The smaller of the two contact loads they allow is the model's limit; a whole-screw step
+    whose mean contact load exceeds it is not solved, and a solution with any contact above
+    it is flagged (``StepResult.in_load_range``).
+    """
+
+    max_contact_semi_axis_ratio: float = field(0.2, "1", "largest Hertz semi-major axis "
+                                               "over the ball radius, a / R_B: the planar "
+                                               "contact of Sec. 3.1 ('small compared with the "
+                                               "ball radius')", lo=0.0, lo_open=True, hi=1.0)
+    max_hertz_pressure_pa: float = field(4.2e9, "Pa", "largest Hertz peak pressure: 4.2 GPa "
+                                         "is the static load rating's criterion for ball "
+                                         "contacts (ISO 76, ISO 3408-5); above it the steel "
+                                         "yields and elastic Hertz theory ends", lo=0.0,
+                                         lo_open=True)
+
+
 LOAD_DISTRIBUTIONS = ("rigid", "elastic")
 SHAFT_LOAD_ENDS = ("track_start", "track_end")
 NUT_SUPPORTS = ("outer_surface", "flange_at_track_start", "flange_at_track_end")
@@ -194,6 +215,7 @@ class BallScrewConfig:
     operation: Operation = dataclasses.field(default_factory=Operation)
     solver: SolverSettings = dataclasses.field(default_factory=SolverSettings)
     elastic: ElasticBodies = dataclasses.field(default_factory=ElasticBodies)
+    validity: ValidityRange = dataclasses.field(default_factory=ValidityRange)
     # 'rigid': rigid nut and shaft, all balls share W through one nut displacement;
     # 'elastic': shaft and nut deform axially between balls (ref. [19]), see ElasticBodies.
     load_distribution: str = dataclasses.field(default="rigid")

@@ -13,7 +13,11 @@ reverse or change speed.  The nut velocity sets the direction of friction (its m
 only scales losses: quasi-static Coulomb friction is rate independent); the axial load W is
 the force of the balls on the nut along +z (W > 0 opposes omega_N > 0) and may change sign.
 omega_N = 0 gives zero friction torque and keeps the state (static friction is
-indeterminate in this model).  Each step returns the friction torque on the nut
+indeterminate in this model).  Load range (``config.validity``): a load whose mean contact
+load exceeds the model's limit (contact ellipse a / R_B, Hertz pressure; about 10 kN for
+Table 4) is not solved: the step returns ``converged = False``, ``in_load_range = False``
+and zero torques, and keeps the state.  A solution with any single contact above the limit
+keeps its numbers with ``in_load_range = False``.  Each step returns the friction torque on the nut
 T_f = T_nut - W p / 2pi split into ball-groove and B2B parts (by their losses), the drive
 power omega_N T_f and the total loss (equal to solver precision), every ball's azimuth,
 omega_B, contact loads, and the B2B contact groups (ball ids rear-first with their forces).
@@ -77,6 +81,7 @@ class StepResult:
     b2b_forces_n: np.ndarray          # per ring pair (ball j, ball j+1), 0 if open
     groups: list = field(default_factory=list)   # [(ball ids rear-first, forces)]
     ball_axial_loads_n: np.ndarray = None   # per ball: its axial force on the nut (sum = W)
+    in_load_range: bool = True       # False: outside config.validity (see docs); see step()
     iterations: int = 0
     solve_time_s: float = 0.0
 
@@ -108,6 +113,8 @@ class WholeScrew:
         self.n = tr.n_balls
         self.loop = 2.0 * math.pi * tr.loaded_turns
         self.separation = self.model.b2b.separation
+        self.max_contact_load_n = self.model.max_contact_load_n()
+        self.max_axial_load_n = self.model.max_axial_load_n(self.n)
         if self.n * self.separation >= self.loop:
             raise ValueError(
                 f"ball_screw.track.n_balls: {self.n} balls need "
@@ -165,16 +172,19 @@ class WholeScrew:
         return kernel.ring_pairs(self.azimuth, self.separation, self.loop,
                                  self.config.solver.gap_tolerance_rad, float(sign))
 
-    def _zero_result(self, omega_n, load_w, dt_s):
-        """No motion or no load: zero friction, state kept."""
+    def _zero_result(self, omega_n, load_w, dt_s, in_range=True):
+        """
+        No motion or no load: zero friction, state kept.  With ``in_range`` False: a load
+        beyond the model's range, not solved (converged = False, zero torques, state kept).
+        """
         return StepResult(
             t_s=self.time, nut_angle_rad=self.nut_angle, nut_velocity_rad_s=omega_n,
             axial_load_n=load_w, torque_total_nm=0.0, torque_b2g_nm=0.0, torque_b2b_nm=0.0,
-            drive_power_w=0.0, loss_w=0.0, converged=True, power_balance_error=0.0,
+            drive_power_w=0.0, loss_w=0.0, power_balance_error=0.0,
             azimuth_rad=self.track_azimuth(), theta_rad=self._centres(
                 self.track_azimuth())[0], omega_b_rad_s=self.ratio * omega_n,
             loads_n=np.zeros((self.n, 4)), b2b_forces_n=np.zeros(self.n),
-            ball_axial_loads_n=np.zeros(self.n))
+            ball_axial_loads_n=np.zeros(self.n), converged=in_range, in_load_range=in_range)
 
     def step(self, nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s):
         """Advance the balls to the measured nut angle and solve the equilibrium there."""
@@ -191,6 +201,10 @@ class WholeScrew:
                               and abs(load_w) <= self.config.solver.min_axial_load_n):
             self._prev = None
             return self._zero_result(omega_n, load_w, dt_s)
+        if abs(load_w) > self.max_axial_load_n:
+            # Beyond the model's range even on average (config.validity): not solved.
+            self._prev = None
+            return self._zero_result(omega_n, load_w, dt_s, in_range=False)
         sign = 1.0 if omega_n > 0.0 else -1.0
         phi = self.track_azimuth()
         theta, centres, shifts = self._centres(phi)
@@ -292,5 +306,6 @@ class WholeScrew:
             azimuth_rad=phi, theta_rad=theta, omega_b_rad_s=self.ratio * omega_n,
             loads_n=sol.terms["load"].copy(), b2b_forces_n=self._forces.copy(),
             groups=groups, ball_axial_loads_n=-sol.terms["axial"].copy(),
+            in_load_range=bool(sol.terms["load"].max() <= self.max_contact_load_n),
             iterations=sol.iterations,
             solve_time_s=time.perf_counter() - t0)
