@@ -12,6 +12,7 @@ on a shared machine vary by +-20 %: compare runs made back to back.
 
 import argparse
 import math
+import os
 import statistics
 import time
 
@@ -36,12 +37,13 @@ def bench_pair(model, repeats):
     return out
 
 
-def bench_screw(model, n_balls, steps, realtime=0):
+def bench_screw(model, n_balls, steps, realtime=0, load_distribution="rigid"):
     """Median warm step time, iterations and per-iteration time for ``n_balls`` balls."""
     base = model.config
     turns = base.track.loaded_turns * n_balls / base.track.n_balls
     cfg = load_ball_screw(overrides={"track": {"n_balls": n_balls, "loaded_turns": turns},
-                                     "solver": {"realtime_max_iterations": realtime}})
+                                     "solver": {"realtime_max_iterations": realtime},
+                                     "load_distribution": load_distribution})
     screw = WholeScrew(cfg, model)
     op = cfg.operation
     dt = op.duration_s / op.n_steps
@@ -77,14 +79,32 @@ def main():
     for th, t in pair.items():
         print(f"  theta2 = {th:g} deg: {1e3 * t:7.2f} ms   (target <= 20 ms; paper 15.3 s)")
     print(f"whole screw, warm-started step, {args.steps} steps of 3.6 deg:")
-    print("      N   median [ms]  p95 [ms]  iterations (median/mean)  per iteration [ms]"
-          "  max groups")
-    for n in (37, 74, 148, 370):
-        r = bench_screw(model, n, args.steps)
-        print(f"  {n:5d}   {1e3 * r['median']:9.3f}  {1e3 * r['p95']:8.3f}"
-              f"  {r['it_median']:10.1f} / {r['it_mean']:4.2f}"
-              f"  {1e3 * r['per_it']:17.3f}  {r['groups']:10d}"
-              f"    (per ball {1e6 * r['median'] / n:.1f} us)")
+    print("  load distr.      N   median [ms]  p95 [ms]  iterations (median/mean)"
+          "  per iteration [ms]  max groups")
+    medians = {}
+    for dist in ("rigid", "elastic"):
+        for n in (37, 74, 148, 370):
+            r = bench_screw(model, n, args.steps, load_distribution=dist)
+            medians[dist, n] = r["median"]
+            print(f"  {dist:9s}  {n:5d}   {1e3 * r['median']:9.3f}  {1e3 * r['p95']:8.3f}"
+                  f"  {r['it_median']:10.1f} / {r['it_mean']:4.2f}"
+                  f"  {1e3 * r['per_it']:17.3f}  {r['groups']:10d}"
+                  f"    (per ball {1e6 * r['median'] / n:.1f} us)")
+    print("  elastic / rigid step time (same run): "
+          + ", ".join(f"N={n}: {medians['elastic', n] / medians['rigid', n]:.2f}"
+                      for n in (37, 74, 148, 370))
+          + "   [goal: elastic <= 1 ms at N = 37, linear in N]")
+    print("  per-ball cost, elastic, N=370 / N=37: "
+          f"{medians['elastic', 370] / 370 / (medians['elastic', 37] / 37):.2f}"
+          "   (1.0 = linear in N)")
+    if model.solver.use_kernel:
+        model.solver.use_kernel = False
+        ref = bench_screw(model, 37, min(args.steps, 30))
+        model.solver.use_kernel = True
+        print(f"  in-run baseline, numpy solver path, rigid, N = 37: median "
+              f"{1e3 * ref['median']:.3f} ms -> kernel rigid {ref['median'] / medians['rigid', 37]:.1f}x,"
+              f" kernel elastic {ref['median'] / medians['elastic', 37]:.1f}x faster")
+    print(f"  machine load {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
     print("real-time mode (solver.realtime_max_iterations), N = 37:")
     for cap in (4, 6):
         r = bench_screw(model, 37, args.steps, realtime=cap)

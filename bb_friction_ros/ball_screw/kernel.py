@@ -952,15 +952,29 @@ def elastic_direction(order, behind, ahead, wrap, rear, jac, dax, res, tr, cp, c
                 for j in range(6):
                     d[r, j] += fc * d_own[r, j]
         if k > 0:
-            for r in range(9):
+            # L is sparse: the load-transfer row on C_{k-1} always; with a B2B contact
+            # behind, the ball rows on the previous ball's states and the equal-rate row.
+            for j in range(11):
+                if j < 9:
+                    d[6, j] += xs[k - 1, 7, j]
+                else:
+                    w[6, j] += xs[k - 1, 7, j]
+            if behind[k] >= 0:
+                for r in range(6):
+                    for j in range(11):
+                        acc = 0.0
+                        for m in range(6):
+                            acc += lm[r, m] * xs[k - 1, m, j]
+                        if j < 9:
+                            d[r, j] -= acc
+                        else:
+                            w[r, j] -= acc
                 for j in range(11):
-                    acc = 0.0
-                    for m in range(9):
-                        acc += lm[r, m] * xs[k - 1, m, j]
+                    acc = lm[8, 2] * xs[k - 1, 2, j]
                     if j < 9:
-                        d[r, j] -= acc
+                        d[8, j] -= acc
                     else:
-                        w[r, j] -= acc
+                        w[8, j] -= acc
         _gauss(d, w, 9, 0, d0, w0)
         for r in range(9):
             for j in range(11):
