@@ -47,11 +47,13 @@ def bench_screw(model, n_balls, steps, realtime=0, load_distribution="rigid"):
     screw = WholeScrew(cfg, model)
     op = cfg.operation
     dt = op.duration_s / op.n_steps
-    times, iters, groups, conv = [], [], [], []
+    times, iters, groups, conv, cpu = [], [], [], [], []
     for k in range(1, steps + 1):
+        c0 = time.thread_time()
         r = screw.step(op.nut_speed_rad_s * k * dt, op.nut_speed_rad_s,
                        op.axial_load_n * n_balls / base.track.n_balls, dt)
         if k > 1:                       # the first step is the cold start
+            cpu.append(time.thread_time() - c0)
             times.append(r.solve_time_s)
             iters.append(r.iterations)
             groups.append(r.n_groups)
@@ -60,6 +62,8 @@ def bench_screw(model, n_balls, steps, realtime=0, load_distribution="rigid"):
     return {"median": float(np.median(times)), "p95": float(np.percentile(times, 95)),
             "it_median": float(np.median(iters)), "it_mean": float(iters.mean()),
             "per_it": float(np.median(times / np.maximum(iters, 1))),
+            # CPU time of the thread per iteration: less sensitive to a loaded machine
+            "cpu_per_it": float(np.sum(cpu) / max(np.sum(iters), 1)),
             "groups": max(groups), "unconverged": int(len(conv) - sum(conv))}
 
 
@@ -82,10 +86,12 @@ def main():
     print("  load distr.      N   median [ms]  p95 [ms]  iterations (median/mean)"
           "  per iteration [ms]  max groups")
     medians = {}
+    cpu_per_it = {}
     for dist in ("rigid", "elastic"):
         for n in (37, 74, 148, 370):
             r = bench_screw(model, n, args.steps, load_distribution=dist)
             medians[dist, n] = r["median"]
+            cpu_per_it[dist, n] = r["cpu_per_it"]
             print(f"  {dist:9s}  {n:5d}   {1e3 * r['median']:9.3f}  {1e3 * r['p95']:8.3f}"
                   f"  {r['it_median']:10.1f} / {r['it_mean']:4.2f}"
                   f"  {1e3 * r['per_it']:17.3f}  {r['groups']:10d}"
@@ -94,9 +100,12 @@ def main():
           + ", ".join(f"N={n}: {medians['elastic', n] / medians['rigid', n]:.2f}"
                       for n in (37, 74, 148, 370))
           + "   [goal: elastic <= 1 ms at N = 37, linear in N]")
-    print("  per-ball cost, elastic, N=370 / N=37: "
-          f"{medians['elastic', 370] / 370 / (medians['elastic', 37] / 37):.2f}"
-          "   (1.0 = linear in N)")
+    print("  CPU time per Newton iteration and ball [us] (thread time; 1.0 ratio = linear):")
+    for dist in ("rigid", "elastic"):
+        per = [cpu_per_it[dist, n] / n * 1e6 for n in (37, 74, 148, 370)]
+        print(f"    {dist:8s} " + "  ".join(f"N={n}: {p:5.2f}" for n, p in
+                                             zip((37, 74, 148, 370), per))
+              + f"   N=370 / N=37: {per[-1] / per[0]:.2f}")
     if model.solver.use_kernel:
         model.solver.use_kernel = False
         ref = bench_screw(model, 37, min(args.steps, 30))
