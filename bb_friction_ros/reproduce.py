@@ -242,7 +242,8 @@ def reproduce(out, cfg, grid=25):
     sections = [("Linear ball bearing (Sec. 2)", rows)]
     screw_rows = [_normalise(r) for r in reproduce_ball_screw(out)]
     sections.append(("Ball screw (Sec. 3)", screw_rows))
-    figs += [p for p in (out / "fig20_ball_distance.png", out / "fig21_torque_split.png")
+    figs += [p for d in (out, out / "elastic", out / "rigid")
+             for p in (d / "fig20_ball_distance.png", d / "fig21_torque_split.png")
              if p.exists()]
     theta_rows, theta_fig = reproduce_theta_amplitude(out)
     sections.append(("Ball screw: the unstated theta amplitude of Fig. 19 (sweep)",
@@ -265,7 +266,7 @@ def reproduce(out, cfg, grid=25):
             lines.append(f"| {r['quantity']} | {r['source']} | {paper} | {ours} | "
                          f"{dev} | {r['unit']} | {r['note']} |")
         lines.append("")
-    lines += ["## Figures", ""] + [f"![{p.stem}]({p.name})" for p in figs]
+    lines += ["## Figures", ""] + [f"![{p.relative_to(out)}]({p.relative_to(out)})" for p in figs]
     report = out / "report.md"
     report.write_text("\n".join(lines) + "\n")
     return report
