@@ -103,16 +103,16 @@ def main():
     print("  CPU time per Newton iteration and ball [us] (thread time; 1.0 ratio = linear):")
     for dist in ("rigid", "elastic"):
         per = [cpu_per_it[dist, n] / n * 1e6 for n in (37, 74, 148, 370)]
-        print(f"    {dist:8s} " + "  ".join(f"N={n}: {p:5.2f}" for n, p in
-                                             zip((37, 74, 148, 370), per))
-              + f"   N=370 / N=37: {per[-1] / per[0]:.2f}")
+        cells = "  ".join(f"N={n}: {p:5.2f}" for n, p in zip((37, 74, 148, 370), per))
+        print(f"    {dist:8s} {cells}   N=370 / N=37: {per[-1] / per[0]:.2f}")
     if model.solver.use_kernel:
         model.solver.use_kernel = False
         ref = bench_screw(model, 37, min(args.steps, 30))
         model.solver.use_kernel = True
         print(f"  in-run baseline, numpy solver path, rigid, N = 37: median "
-              f"{1e3 * ref['median']:.3f} ms -> kernel rigid {ref['median'] / medians['rigid', 37]:.1f}x,"
-              f" kernel elastic {ref['median'] / medians['elastic', 37]:.1f}x faster")
+              f"{1e3 * ref['median']:.3f} ms -> kernel rigid "
+              f"{ref['median'] / medians['rigid', 37]:.1f}x, kernel elastic "
+              f"{ref['median'] / medians['elastic', 37]:.1f}x faster")
     print(f"  machine load {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
     print("real-time mode (solver.realtime_max_iterations), N = 37:")
     for cap in (4, 6):

@@ -877,8 +877,10 @@ def _role(c, b, rear, g_r, g_f, dgr_r, dgr_f, dgf_r, dgf_f, gv, d_own, d_other):
 def elastic_direction(order, behind, ahead, wrap, rear, jac, dax, res, tr, cp, cons, fhat,
                       comp_b, g_r, g_f, dgr_r, dgr_f, dgf_r, dgf_f, xs, ys, dx, dv, dcum, df):
     """
-    Newton step of the elastic system: block Thomas sweep in axial order with the
-    return-tube contact as a border.  The derivatives of that one contact's friction
+    Newton step of the elastic system.
+
+    A block Thomas sweep in axial order with the return-tube contact as a border.  The
+    derivatives of that one contact's friction
     direction with respect to the other ball are left out of the Jacobian (its residual
     stays exact; only that contact converges linearly).  Returns the border force step.
 
@@ -1119,7 +1121,7 @@ def solve_active_elastic(x, v, fhat, centres, sign, cst, k_load, k_axis, on_nut,
 
 def pack_constants(ball, extra_oversize_m=0.0):
     """
-    The kernels' constant vector ``cst`` from a ``single_ball.BallGrooveModel``.
+    Pack the kernels' constant vector ``cst`` from a ``single_ball.BallGrooveModel``.
 
     (lambda, R_B, cos alpha, sin alpha, l = L/2pi, mu, ball-arc free distance, p/2pi); a
     temporary extra oversize (cold-start continuation) shortens the free distance.

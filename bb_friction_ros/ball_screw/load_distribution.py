@@ -71,7 +71,7 @@ def compatibility_terms(c_shaft, c_nut, load_w, elastic, scale):
 
 
 def elastic_load_path(track_azimuth_rad, lead_m, elastic, load_w, scale):
-    """The solver's ``elastic`` argument (order, comp_a, comp_b) for the current positions."""
+    """Return the solver's ``elastic`` argument (order, comp_a, comp_b) at these positions."""
     order = axial_order(track_azimuth_rad)
     c_shaft, c_nut = bar_compliances(np.asarray(track_azimuth_rad)[order], lead_m, elastic)
     return (order,) + compatibility_terms(c_shaft, c_nut, load_w, elastic, scale)

@@ -195,7 +195,7 @@ class ElasticBodies:
     nut_support: str = dataclasses.field(default="outer_surface")
 
     def check(self, path):
-        """The two choices are named, not numbers."""
+        """Check the two choices by name."""
         if self.shaft_load_end not in SHAFT_LOAD_ENDS:
             raise ConfigError(f"{path}.shaft_load_end: must be one of "
                               f"{', '.join(SHAFT_LOAD_ENDS)}, got {self.shaft_load_end!r}")

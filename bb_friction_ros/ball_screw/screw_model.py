@@ -1,12 +1,12 @@
 """
 Ball screw model objects and the robust cold start of the ball equilibrium.
 
-With zero preload the balls are in three-point contact (docs/assumptions_ball_screw.md): the spin about the loaded
-diagonal is only weakly determined and Newton from a two-point guess can run away.  A cold
-start therefore solves one ball with theta = 0 at a reference load per ball, continues in the
-load (displacements scale as W^(2/3)) to the actual load, copies the state to every ball and
-continues theta (and the lead errors) from zero to their actual values with all balls
-coupled.  Every continuation step is a converged Newton solve.
+With zero preload the balls are in three-point contact (docs/assumptions_ball_screw.md): the
+spin about the loaded diagonal is only weakly determined and Newton from a two-point guess can
+run away.  A cold start therefore solves one ball with theta = 0 at a reference load per
+ball, continues in the load (displacements scale as W^(2/3)) to the actual load, copies the
+state to every ball and continues theta (and the lead errors) from zero to their actual
+values with all balls coupled.  Every continuation step is a converged Newton solve.
 """
 
 import math

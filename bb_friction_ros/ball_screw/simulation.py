@@ -34,7 +34,7 @@ def run_whole_screw(config, n_steps=None, screw=None):
 
 def fig21_features(nut_angle_rad, torque_b2g_nm, torque_b2b_nm, n_groups):
     """
-    The features of Figs. 20-21 that the paper states, from a run's time series (SI).
+    Compute the features of Figs. 20-21 that the paper states from a run's series (SI).
 
     Returns peak_b2b_share (largest T_B2B / T_B2G; paper 49.6 %), peak_b2b_nut_angle_rad
     (where; paper 126 deg), b2b_zero_nut_angle_rad (first nut angle after the peak with no

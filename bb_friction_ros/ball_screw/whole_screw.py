@@ -174,8 +174,10 @@ class WholeScrew:
 
     def _zero_result(self, omega_n, load_w, dt_s, in_range=True):
         """
-        No motion or no load: zero friction, state kept.  With ``in_range`` False: a load
-        beyond the model's range, not solved (converged = False, zero torques, state kept).
+        Return zero friction with the state kept: no motion or no load.
+
+        With ``in_range`` False: a load beyond the model's range, not solved (converged =
+        False, zero torques, state kept).
         """
         return StepResult(
             t_s=self.time, nut_angle_rad=self.nut_angle, nut_velocity_rad_s=omega_n,

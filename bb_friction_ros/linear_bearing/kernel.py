@@ -10,8 +10,8 @@ the numpy model stays the reference and the fallback without numba, and the test
 both.
 
 The residual and Jacobian are ``LinearBearingModel._residual_impl`` (Eqs. 1-10) written per
-contact; the Newton iteration with its backtracking line search is ``solve_group``'s: one evaluation
-(residual and Jacobian together) per accepted step.
+contact; the Newton iteration with its backtracking line search is ``solve_group``'s: one
+evaluation (residual and Jacobian together) per accepted step.
 """
 
 import math

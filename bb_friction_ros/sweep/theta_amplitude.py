@@ -6,8 +6,9 @@ The paper's whole-screw study (Sec. 3.4) gives theta(phi) only as a picture with
 with rigid and elastic load distribution on the ordinary sweep engine and records the
 features of Figs. 20-21 that the paper states.  The amplitude is calibrated against ONE of
 them, the peak B2B share (paper 49.6 %): a straight line fitted to the sweep's points around
-the crossing gives the value and its uncertainty.  The other features are validation, never fitted.  The result is the
-config value ``errors.theta_amplitude_deg`` (docs/assumptions_ball_screw.md).
+the crossing gives the value and its uncertainty.  The other features are validation, never
+fitted.  The result is the config value ``errors.theta_amplitude_deg``
+(docs/assumptions_ball_screw.md).
 """
 
 import dataclasses
@@ -106,7 +107,7 @@ def fig21_run(config, amplitude_rad, model=None):
 
 
 def plot_theta_sweep(rows, path, calibrated_deg=None, config_deg=None):
-    """The whole sweep: each Fig. 21 feature over the amplitude, rigid and elastic, paper."""
+    """Plot the whole sweep: each Fig. 21 feature over the amplitude, rigid and elastic, paper."""
     import matplotlib.pyplot as plt
     fig, axes = plt.subplots(2, 3, figsize=(12, 6.5))
     panels = [("fig21_peak_b2b_share", 100.0, "peak B2B / ball-groove torque [%]",

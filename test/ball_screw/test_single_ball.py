@@ -49,7 +49,8 @@ def test_free_orbit_ratio_matches_independent_reimplementation(model, theta_deg,
 
 
 def test_three_point_contact_at_50n(model):
-    # That re-implementation: SL ~ NR ~ 38-41 N, NL ~ 5-7 N, SR unloaded (zero preload, Coulomb friction).
+    # That re-implementation: SL ~ NR ~ 38-41 N, NL ~ 5-7 N, SR unloaded (zero preload,
+    # Coulomb friction).
     load = _solve(model, 0.0).terms["load"][0]
     assert load[1] == 0.0
     assert 35.0 < load[0] < 42.0 and 35.0 < load[2] < 42.0
