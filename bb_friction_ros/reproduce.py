@@ -13,10 +13,10 @@ import time
 
 import numpy as np
 
-from bb_friction_ros.ball_screw.parameters import load_ball_screw
 from bb_friction_ros.ball_screw.reproduce import reproduce_ball_screw
 from bb_friction_ros.linear_bearing.case_study import LinearPairCase
 from bb_friction_ros.linear_bearing.mitigation import two_ball_relative_motion
+from bb_friction_ros.model_file import load_ball_screw
 from bb_friction_ros.sweep import theta_amplitude as ta
 
 # Paper values (Lin, Duan, Okwudire 2019) and the tolerance each is held to, with why.

@@ -19,9 +19,11 @@ from pathlib import Path
 import numpy as np
 
 from bb_friction_ros.bags import Event, measured_torque_at, read_events, Topics
-from bb_friction_ros.config import bundled_config, ConfigError, load_yaml
-from bb_friction_ros.discrepancy.terms import load_terms
-from bb_friction_ros.replay import ReplaySettings, run_events
+from bb_friction_ros.config import bundled_config, ConfigError
+from bb_friction_ros.empirical_terms import Inputs
+from bb_friction_ros.model_file import load_model_file
+from bb_friction_ros.node_parameters import NodeParameters
+from bb_friction_ros.replay import run_events
 from bb_friction_ros.runner import build_runner, InputAssembler
 
 CSV_REQUIRED = ("t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n",
@@ -70,20 +72,11 @@ def run_times(stamps_s):
     return stamps - first
 
 
-def base_terms(config_path):
-    """Return the TermSet already in a config's ``empirical_terms`` (empty when none)."""
-    raw = load_yaml(config_path)
-    return load_terms(raw.get("empirical_terms") if isinstance(raw, dict) else None)
-
-
-def runner_applies_terms():
-    """
-    Tell whether the runner's Prediction carries an empirical part of its own.
-
-    Until it does, the workflow adds a base config's ``empirical_terms`` itself.
-    """
-    from bb_friction_ros.runner import Prediction
-    return any("empirical" in f.name for f in dataclasses.fields(Prediction))
+def inputs_of(rec, mask=None):
+    """Return the empirical_terms.Inputs of a recording (or of the samples in ``mask``)."""
+    sel = slice(None) if mask is None else mask
+    return Inputs.of(rec.t_run_s[sel], rec.nut_angle_rad[sel], rec.nut_velocity_rad_s[sel],
+                     rec.axial_load_n[sel])
 
 
 def predict_events(events, config_path, replay_settings, progress=False):
@@ -101,16 +94,12 @@ def _from_predictions(preds, measured_nm, config_path, info):
     speed = np.array([p.nut_velocity_rad_s for p in preds], dtype=float)
     load = np.array([p.axial_load_n for p in preds], dtype=float)
     pred = np.array([p.torque_total_nm for p in preds], dtype=float)
-    terms = base_terms(config_path)
-    if len(terms) and not runner_applies_terms():
-        pred = pred + terms.torque_nm(t_run, angle, speed, load)
-        info["base_terms_added_by"] = "discrepancy workflow (runner does not apply them)"
-    info["base_terms"] = list(terms.names)
+    info["base_terms"] = list(load_model_file(config_path)[1].names)   # in pred already
     return Recording(t, t_run, angle, speed, load, np.asarray(measured_nm, dtype=float), pred,
                      np.array([p.converged for p in preds], dtype=bool), info)
 
 
-def load_bag(path, config_path, replay_settings=ReplaySettings(), topics=Topics(),
+def load_bag(path, config_path, replay_settings=NodeParameters(), topics=Topics(),
              progress=False):
     """Read a rosbag2, predict through the replay path, align the measured torque."""
     try:
@@ -168,7 +157,7 @@ def csv_events(cols, nut_joint):
     return events
 
 
-def load_csv(path, config_path, replay_settings=ReplaySettings(), recompute=False,
+def load_csv(path, config_path, replay_settings=NodeParameters(), recompute=False,
              progress=False):
     """Read a CSV recording; reuse its ``torque_pred_nm`` unless ``recompute`` (see module)."""
     cols = _read_csv_columns(path)
@@ -197,7 +186,7 @@ def load_csv(path, config_path, replay_settings=ReplaySettings(), recompute=Fals
     return _from_predictions(preds, cols["torque_meas_nm"], config_path, info)
 
 
-def load_recording(path, config_path=None, replay_settings=ReplaySettings(), topics=Topics(),
+def load_recording(path, config_path=None, replay_settings=NodeParameters(), topics=Topics(),
                    recompute=False, progress=False):
     """Load a rosbag2 directory or a ``.csv`` file (see module docstring)."""
     path = Path(path)

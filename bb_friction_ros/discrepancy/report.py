@@ -11,7 +11,8 @@ import math
 
 import numpy as np
 
-from bb_friction_ros.discrepancy.terms import LIBRARY
+from bb_friction_ros.discrepancy.data import inputs_of
+from bb_friction_ros.empirical_terms import LIBRARY
 
 FIGURES = ("residual_where.png", "heldout_before_after.png", "time_series.png")
 
@@ -154,7 +155,6 @@ def plot_all(out, a):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from bb_friction_ros.discrepancy.workflow import inputs_of
     x = inputs_of(a.recording)
     fig, axes = plt.subplots(2, 2, figsize=(11, 7))
     _panels(axes.ravel(), x, [a.residual_nm], ["residual (measured - predicted)"], ["0.5"],

@@ -23,7 +23,7 @@ import math
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from bb_friction_ros.discrepancy.terms import LIBRARY, make_term, TermSet
+from bb_friction_ros.empirical_terms import LIBRARY, make_term, TermSet
 
 # Tolerance of the 1-D refinement of a nonlinear parameter, in ln units: 1e-3 is 0.1 %,
 # far below what a noisy recording can resolve.
@@ -230,7 +230,7 @@ def best_fit(subset, x, r, cache=None):
 
 def select(x, r, settings, skip=()):
     """
-    Select terms explaining residual ``r`` at fit inputs ``x`` (a terms.Inputs).
+    Select terms explaining residual ``r`` at fit inputs ``x`` (an empirical_terms.Inputs).
 
     Best-subset selection: for each size m <= max_terms the subset of lowest BIC; the size
     chosen minimises BIC + bic_threshold * m (every term must earn strong evidence), and a

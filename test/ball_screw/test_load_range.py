@@ -4,7 +4,7 @@ import math
 
 import pytest
 
-from bb_friction_ros.ball_screw.parameters import load_ball_screw
+from bb_friction_ros.model_file import load_ball_screw
 from bb_friction_ros.ball_screw.screw_model import ScrewModel
 from bb_friction_ros.ball_screw.whole_screw import WholeScrew
 from bb_friction_ros.config import ConfigError

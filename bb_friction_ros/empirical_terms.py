@@ -37,7 +37,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from bb_friction_ros.config import _EDGE_UNITS, ConfigError, field, from_mapping
+from bb_friction_ros.config import ConfigError, field, from_mapping, si_key
 
 # Harmonics of the lead error per revolution that a term can carry.  Beyond the fourth the
 # torque ripple of a ground screw is below any torque sensor's resolution.
@@ -303,15 +303,7 @@ def make_term(name, values):
 def _given_fields(params, cls):
     """Return the SI field names that the keys of ``params`` set (edge units resolved)."""
     names = {f.name for f in dataclasses.fields(cls)}
-    given = set()
-    for key in params:
-        if key in names:
-            given.add(key)
-            continue
-        for edge, si, _ in _EDGE_UNITS:
-            if key.endswith(edge) and key[: -len(edge)] + si in names:
-                given.add(key[: -len(edge)] + si)
-    return given
+    return {si_key(key, names)[0] for key in params if si_key(key, names) is not None}
 
 
 def _load_one(entry, path):
