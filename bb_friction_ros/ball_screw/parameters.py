@@ -227,4 +227,3 @@ class BallScrewConfig:
             raise ConfigError(f"{path}.load_distribution: must be one of "
                               f"{', '.join(LOAD_DISTRIBUTIONS)}, got "
                               f"{self.load_distribution!r}")
-

@@ -99,4 +99,26 @@ def reproduce_ball_screw(out_dir, config=None, n_steps=None):
             _row("Sec. 3.4 median step time" + tag, None, summary["step_time_median_s"],
                  "s", f"{len(results)} steps, all converged: {summary['all_converged']}"),
         ]
+    rows += load_range_rows(model, cfg.track.n_balls)
     return rows
+
+
+def load_range_rows(model, n_balls):
+    """
+    Return the model's load range (``config.validity``; issue 13 finding 2) as report rows.
+
+    Not a paper number: the contact load where the Hertz ellipse or peak pressure reaches
+    its bound, and the axial load at which the mean contact load of ``n_balls`` reaches it.
+    """
+    q = model.max_contact_load_n()
+    ratio = max(float(h.semi_axes(q)[0]) / model.ball.r_b for h in model.ball.hertz)
+    p0 = max(float(h.peak_pressure(q)) for h in model.ball.hertz)
+    v = model.config.validity
+    return [
+        _row("Load range: largest contact load", None, q, "N",
+             f"a/R_B = {ratio:.3f} (bound {v.max_contact_semi_axis_ratio:g}), "
+             f"p0 = {p0 / 1e9:.2f} GPa (bound {v.max_hertz_pressure_pa / 1e9:g} GPa)"),
+        _row("Load range: largest axial load", None, model.max_axial_load_n(n_balls), "N",
+             f"{n_balls} balls; beyond it a step is not solved: converged = false, "
+             "in_load_range = false"),
+    ]

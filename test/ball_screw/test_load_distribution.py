@@ -5,10 +5,10 @@ import pytest
 
 from bb_friction_ros.ball_screw.load_distribution import (axial_order, bar_compliances,
                                                           compatibility_terms)
-from bb_friction_ros.model_file import load_ball_screw
 from bb_friction_ros.ball_screw.simulation import run_whole_screw
 from bb_friction_ros.ball_screw.whole_screw import WholeScrew
 from bb_friction_ros.config import ConfigError
+from bb_friction_ros.model_file import load_ball_screw
 
 STEPS = 30    # 108 deg of nut rotation: B2B groups form (active-set changes every step)
 

@@ -4,10 +4,11 @@ import math
 
 import pytest
 
-from bb_friction_ros.model_file import load_ball_screw
+from bb_friction_ros.ball_screw.reproduce import load_range_rows
 from bb_friction_ros.ball_screw.screw_model import ScrewModel
 from bb_friction_ros.ball_screw.whole_screw import WholeScrew
 from bb_friction_ros.config import ConfigError
+from bb_friction_ros.model_file import load_ball_screw
 
 
 def test_limit_is_where_the_ellipse_or_the_pressure_reaches_its_bound(model, config):
@@ -64,3 +65,13 @@ def test_inside_the_range_solutions_are_flagged_in_range(config, model):
 def test_bad_range_config_is_refused_by_name(key, value):
     with pytest.raises(ConfigError, match=key):
         load_ball_screw(overrides={"validity": {key: value}})
+
+
+def test_reproduce_report_states_the_range(model, config):
+    # The report's rows are the model's own limits, with the bound that binds.
+    rows = {r["quantity"]: r for r in load_range_rows(model, config.track.n_balls)}
+    contact = rows["Load range: largest contact load"]
+    assert contact["ours"] == model.max_contact_load_n()
+    assert "a/R_B = 0.200" in contact["note"]
+    axial = rows["Load range: largest axial load"]
+    assert axial["ours"] == model.max_axial_load_n(config.track.n_balls)
