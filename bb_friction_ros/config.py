@@ -11,6 +11,7 @@ with the dotted key and the reason.
 import dataclasses
 import math
 from pathlib import Path
+import warnings
 
 import yaml
 
@@ -47,6 +48,22 @@ def si_key(key, names):
         if key.endswith(edge) and key[: -len(edge)] + si in names:
             return key[: -len(edge)] + si, factor
     return None
+
+
+def current_name(cls, key, path):
+    """
+    Return the field name for ``key`` of config class ``cls``: ``key``, or its new name.
+
+    A class lists its renamed keys in ``RENAMED = {old: new}``.  Files and scripts written
+    before a rename keep working: the old key is read as the new one, with a FutureWarning
+    that names both (``path`` is the dotted path of the key's mapping).
+    """
+    new = getattr(cls, "RENAMED", {}).get(key)
+    if new is None:
+        return key
+    warnings.warn(f"{path}.{key}: renamed to {new}; read as {new}, please write {new}",
+                  FutureWarning, stacklevel=3)
+    return new
 
 
 def parse_number(value, path, unit=""):
@@ -126,7 +143,7 @@ def from_mapping(cls, data, path):
         if not isinstance(key, str):
             raise ConfigError(f"{path}: key {key!r} is not a name (known: "
                               f"{', '.join(sorted(fields))})")
-        resolved = si_key(key, fields)
+        resolved = si_key(current_name(cls, key, path), fields)
         if resolved is None:
             known = ", ".join(sorted(fields))
             raise ConfigError(f"{path}.{key}: unknown key (known: {known})")

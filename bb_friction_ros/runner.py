@@ -284,7 +284,7 @@ def build_runner(config_path, model_rate_hz):
     """
     cfg, terms = load_model_file(config_path)
     runner = ModelRunner(WholeScrew(cfg), model_rate_hz, terms if len(terms) else None)
-    runner.warm_up(cfg.operation.axial_load_n, cfg.operation.nut_speed_rad_s)
+    runner.warm_up(cfg.operation.axial_load_n, cfg.operation.nut_velocity_rad_s)
     return runner
 
 

@@ -50,7 +50,7 @@ def bench_screw(model, n_balls, steps, realtime=0, load_distribution="rigid"):
     times, iters, groups, conv, cpu = [], [], [], [], []
     for k in range(1, steps + 1):
         c0 = time.thread_time()
-        r = screw.step(op.nut_speed_rad_s * k * dt, op.nut_speed_rad_s,
+        r = screw.step(op.nut_velocity_rad_s * k * dt, op.nut_velocity_rad_s,
                        op.axial_load_n * n_balls / base.track.n_balls, dt)
         if k > 1:                       # the first step is the cold start
             cpu.append(time.thread_time() - c0)

@@ -23,6 +23,14 @@ changes of the solver, not of the model:
 
 Derivatives with respect to u: u enters only through the nut arcs' z_3 shift, so each
 derivative in u is -g cos(alpha) times the derivative in zeta.
+
+References
+----------
+.. [1] Lin, B., Duan, M., Okwudire, C. E., 2019, "Analytical and Low-Order Numerical Modeling
+   of Ball-to-Ball Contact Friction in Linear Ball Bearings and Ball Screws", ASME J. Tribol.
+   141(8), DOI 10.1115/1.4043630.
+   Eqs. (54)-(61) (compiled form of ``solver``).
+
 """
 
 import math
@@ -527,7 +535,7 @@ def newton_direction(seq, starts, rear_of, front_of, jac, dax, res, axial, cons,
 
 @_jit
 def _residual(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid,
-              scale, load_w, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, res, jac, dax, terms,
+              scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, res, jac, dax, terms,
               per_contact, g_r, g_f, speed, dgr_r, dgr_f, dgf_r, dgf_f, cons, want_jac):
     """Full residual (balls + B2B + axial + equal rates) and Jacobian; returns (axial, norm)."""
     ax = evaluate_balls(x, u, np.zeros(x.shape[0]), centres, sign, cst, k_load, k_axis,
@@ -542,7 +550,7 @@ def _residual(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, co
             res[r, j] += g_r[c, j] * fhat[c]
             res[f, j] += g_f[c, j] * fhat[c]
         cons[c] = x[r, 2] - x[f, 2]
-    axial = (ax + load_w) / scale
+    axial = (ax + axial_load_n) / scale
     norm = abs(axial)
     for i in range(res.shape[0]):
         for j in range(6):
@@ -567,7 +575,7 @@ def _alloc(n, kc):
 
 @_jit
 def solve_active(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
-                 grid, scale, load_w, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, tol,
+                 grid, scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, tol,
                  max_it, max_rate, disp_limit):
     """
     Newton with trust region and halving line search for one active set.
@@ -582,7 +590,7 @@ def solve_active(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
     x = x.copy()
     fhat = fhat.copy()
     axial, norm = _residual(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
-                            coef_n, grid, scale, load_w, rear, front, b_r, b_f, c_r, c_f,
+                            coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f,
                             k_r, k_f, cur[0], cur[1], cur[2], cur[3], cur[4], cur[5], cur[6],
                             cur[7], cur[8], cur[9], cur[10], cur[11], cur[12], True)
     rear_of, front_of, seq, starts, ok_chain = chains(n, rear, front)
@@ -626,7 +634,7 @@ def solve_active(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
             for c in range(kc):
                 fn[c] = fhat[c] + step * df[c]
             ax_n, nn = _residual(xn, un, fn, centres, sign, cst, k_load, k_axis, on_nut,
-                                 coef_s, coef_n, grid, scale, load_w, rear, front, b_r, b_f,
+                                 coef_s, coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f,
                                  c_r, c_f, k_r, k_f, trial[0], trial[1], trial[2], trial[3],
                                  trial[4], trial[5], trial[6], trial[7], trial[8], trial[9],
                                  trial[10], trial[11], trial[12], not last)
@@ -635,7 +643,7 @@ def solve_active(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
             step *= 0.5
         if last and not nn <= tol:
             ax_n, nn = _residual(xn, un, fn, centres, sign, cst, k_load, k_axis, on_nut,
-                                 coef_s, coef_n, grid, scale, load_w, rear, front, b_r, b_f,
+                                 coef_s, coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f,
                                  c_r, c_f, k_r, k_f, trial[0], trial[1], trial[2], trial[3],
                                  trial[4], trial[5], trial[6], trial[7], trial[8], trial[9],
                                  trial[10], trial[11], trial[12], True)
@@ -815,7 +823,7 @@ def _elastic_blocks(order, pos, rear, front, n):
 
 @_jit
 def _elastic_residual(x, v, cum, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
-                      coef_n, grid, scale, load_w, rear, front, b_r, b_f, c_r, c_f, k_r, k_f,
+                      coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f,
                       order, comp_a, comp_b, res, jac, dax, terms, per_contact, g_r, g_f,
                       speed, dgr_r, dgr_f, dgf_r, dgf_f, cons, tr, cp, want_jac):
     """Residuals of the elastic system (see above) and the Jacobian pieces; returns the norm."""
@@ -838,7 +846,7 @@ def _elastic_residual(x, v, cum, fhat, centres, sign, cst, k_load, k_axis, on_nu
         if k < n - 1:
             cp[k] = v[order[k + 1]] - v[b] - comp_a[k] + comp_b[k] * cum[k]
         else:
-            cp[k] = cum[k] - load_w * inv_s
+            cp[k] = cum[k] - axial_load_n * inv_s
     norm = 0.0
     for i in range(n):
         for j in range(6):
@@ -1023,7 +1031,7 @@ def _alloc_elastic(n, kc):
 
 @_jit
 def solve_active_elastic(x, v, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
-                         coef_n, grid, scale, load_w, rear, front, b_r, b_f, c_r, c_f, k_r,
+                         coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r,
                          k_f, order, comp_a, comp_b, tol, max_it, max_rate, disp_limit):
     """
     ``solve_active`` for the elastic load distribution: v (N,) per-ball nut displacements.
@@ -1050,7 +1058,7 @@ def solve_active_elastic(x, v, fhat, centres, sign, cst, k_load, k_axis, on_nut,
         pos[order[k]] = k
     behind, ahead, wrap = _elastic_blocks(order, pos, rear, front, n)
     norm = _elastic_residual(x, v, cum, fhat, centres, sign, cst, k_load, k_axis, on_nut,
-                             coef_s, coef_n, grid, scale, load_w, rear, front, b_r, b_f, c_r,
+                             coef_s, coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f, c_r,
                              c_f, k_r, k_f, order, comp_a, comp_b, cur[0], cur[1], cur[2],
                              cur[3], cur[4], cur[5], cur[6], cur[7], cur[8], cur[9], cur[10],
                              cur[11], cur[12], cur[13], cur[14], True)
@@ -1093,7 +1101,7 @@ def solve_active_elastic(x, v, fhat, centres, sign, cst, k_load, k_axis, on_nut,
             for c in range(kc):
                 fn[c] = fhat[c] + step * df[c]
             nn = _elastic_residual(xn, vn, cn, fn, centres, sign, cst, k_load, k_axis,
-                                   on_nut, coef_s, coef_n, grid, scale, load_w, rear, front,
+                                   on_nut, coef_s, coef_n, grid, scale, axial_load_n, rear, front,
                                    b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b,
                                    trial[0], trial[1], trial[2], trial[3], trial[4],
                                    trial[5], trial[6], trial[7], trial[8], trial[9],
@@ -1104,7 +1112,7 @@ def solve_active_elastic(x, v, fhat, centres, sign, cst, k_load, k_axis, on_nut,
             step *= 0.5
         if last and not nn <= tol:
             nn = _elastic_residual(xn, vn, cn, fn, centres, sign, cst, k_load, k_axis,
-                                   on_nut, coef_s, coef_n, grid, scale, load_w, rear, front,
+                                   on_nut, coef_s, coef_n, grid, scale, axial_load_n, rear, front,
                                    b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b,
                                    trial[0], trial[1], trial[2], trial[3], trial[4],
                                    trial[5], trial[6], trial[7], trial[8], trial[9],

@@ -56,7 +56,7 @@ def bar_compliances(track_azimuth_sorted_rad, lead_m, elastic):
     return c_shaft, c_nut
 
 
-def compatibility_terms(c_shaft, c_nut, load_w, elastic, scale):
+def compatibility_terms(c_shaft, c_nut, axial_load_n, elastic, scale):
     """
     (comp_a, comp_b) of v_{k+1} - v_k = comp_a[k] - comp_b[k] C_k / scale, in LENGTH_SCALE_M.
 
@@ -65,13 +65,13 @@ def compatibility_terms(c_shaft, c_nut, load_w, elastic, scale):
     """
     s_n = 1.0 if elastic.nut_support == "flange_at_track_start" else 0.0
     l_s = 1.0 if elastic.shaft_load_end == "track_start" else 0.0
-    comp_a = load_w * (s_n * c_nut + l_s * c_shaft) / LENGTH_SCALE_M
+    comp_a = axial_load_n * (s_n * c_nut + l_s * c_shaft) / LENGTH_SCALE_M
     comp_b = (c_nut + c_shaft) * scale / LENGTH_SCALE_M
     return np.ascontiguousarray(comp_a), np.ascontiguousarray(comp_b)
 
 
-def elastic_load_path(track_azimuth_rad, lead_m, elastic, load_w, scale):
+def elastic_load_path(track_azimuth_rad, lead_m, elastic, axial_load_n, scale):
     """Return the solver's ``elastic`` argument (order, comp_a, comp_b) at these positions."""
     order = axial_order(track_azimuth_rad)
     c_shaft, c_nut = bar_compliances(np.asarray(track_azimuth_rad)[order], lead_m, elastic)
-    return (order,) + compatibility_terms(c_shaft, c_nut, load_w, elastic, scale)
+    return (order,) + compatibility_terms(c_shaft, c_nut, axial_load_n, elastic, scale)

@@ -6,6 +6,14 @@ deviation theta; the axial load is applied to the screw, which may only translat
 both balls share it through the nut's axial displacement.  The balls touch (their helix
 separation is the B2B contact separation); contact closes if the rear ball orbits faster
 (Eq. 60), and the rear ball is the faster one by construction, as in the paper's cases.
+
+References
+----------
+.. [1] Lin, B., Duan, M., Okwudire, C. E., 2019, "Analytical and Low-Order Numerical Modeling
+   of Ball-to-Ball Contact Friction in Linear Ball Bearings and Ball Screws", ASME J. Tribol.
+   141(8), DOI 10.1115/1.4043630.
+   Sec. 3.3, Fig. 12(b), Table 5, Eqs. (54)-(60).
+
 """
 
 import time
@@ -36,11 +44,34 @@ class ModuleResult:
     power_balance_error: float
 
 
-def solve_two_ball_module(model, theta1_rad, theta2_rad, axial_load_n, nut_speed_rad_s=None):
-    """Table 5: B2B force and friction increase of the two-ball module (Eqs. 54-60)."""
+def solve_two_ball_module(model, theta1_rad, theta2_rad, axial_load_n, nut_velocity_rad_s=None):
+    """
+    Table 5: B2B force and friction increase of the two-ball module (Eqs. 54-60).
+
+    Parameters
+    ----------
+    model : ScrewModel
+        Contact model of the screw (its config gives mu, geometry and the default omega_N).
+    theta1_rad, theta2_rad : float
+        Screw-side contact-angle deviation theta of ball 1 and ball 2 (Fig. 17)  [rad].
+    axial_load_n : float
+        Axial load W shared by the two balls, force of the balls on the nut along +z  [N].
+    nut_velocity_rad_s : float, optional
+        Signed nut angular velocity omega_N  [rad/s]; default
+        ``config.operation.nut_velocity_rad_s``.
+
+    Returns
+    -------
+    ModuleResult
+        F_B2B [N], friction increase (fraction), friction torques [N m], losses [W] at
+        omega_N, free orbit ratios omega_B / omega_N, contact loads [N], convergence and the
+        relative power balance error |omega_N T_f - losses| / losses.
+
+    """
     t0 = time.perf_counter()
     cfg = model.config
-    omega_n = cfg.operation.nut_speed_rad_s if nut_speed_rad_s is None else nut_speed_rad_s
+    omega_n = cfg.operation.nut_velocity_rad_s if nut_velocity_rad_s is None \
+        else nut_velocity_rad_s
     sign = 1.0 if omega_n >= 0.0 else -1.0
     b = model.ball
     centres = b.arc_centres(np.array([theta1_rad, theta2_rad]), 0.0, 0.0)

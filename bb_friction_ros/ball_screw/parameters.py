@@ -8,6 +8,7 @@ file may use the edge units ``*_deg``, ``*_mm``, ``*_um`` (converted by ``config
 
 import dataclasses
 import math
+from typing import ClassVar
 
 from bb_friction_ros.config import ConfigError, field
 
@@ -96,8 +97,11 @@ class NutTrack:
 class Operation:
     """Operating point of the whole-screw simulation (Sec. 3.4) and of the module (Table 5)."""
 
-    nut_speed_rad_s: float = field(2.0 * math.pi, "rad/s", "nut angular velocity omega_N",
-                                   lo=-1e4, hi=1e4)
+    # signed, so a velocity: the old name stays readable (config.current_name)
+    RENAMED: ClassVar[dict] = {"nut_speed_rad_s": "nut_velocity_rad_s"}
+
+    nut_velocity_rad_s: float = field(2.0 * math.pi, "rad/s", "nut angular velocity omega_N "
+                                      "(signed)", lo=-1e4, hi=1e4)
     axial_load_n: float = field(1500.0, "N", "axial load W: force of the balls on the nut "
                                 "along +z; W > 0 opposes omega_N > 0", lo=-1e6, hi=1e6)
     duration_s: float = field(2.0, "s", "simulated time", lo=0.0, lo_open=True)

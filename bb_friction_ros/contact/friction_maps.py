@@ -22,6 +22,15 @@ is constant on each ray); only the angle is integrated numerically.  Tables are 
 ellipticity and cached on disk; between nodes we interpolate with cubic Hermite polynomials
 (own implementation: scipy's interpolators cost ~30 us per call, which would be most of the
 1 ms budget of a two-ball solve).
+
+References
+----------
+.. [1] Lin, B., Duan, M., Okwudire, C. E., 2019, "Analytical and Low-Order Numerical Modeling
+   of Ball-to-Ball Contact Friction in Linear Ball Bearings and Ball Screws", ASME J. Tribol.
+   141(8), DOI 10.1115/1.4043630.
+   Eqs. (A4)-(A7) (force, moment, loss over the ellipse), Eqs. (11)-(12) (limits), Fig. 5
+   and Sec. 2.3.1 (k_f).
+
 """
 
 import hashlib

@@ -5,6 +5,14 @@ Setup: the bottom groove deviates by theta (dbeta_BL = -theta, dbeta_BR = +theta
 groove by (dbeta_TR, dbeta_TL).  Ball 1 is behind and carries N_x = +rho N_y, ball 2 in
 front carries -rho N_y, both N_y.  The balls are taken as touching, so B2B contact forms
 exactly when ball 1 is faster (Eq. 9).
+
+References
+----------
+.. [1] Lin, B., Duan, M., Okwudire, C. E., 2019, "Analytical and Low-Order Numerical Modeling
+   of Ball-to-Ball Contact Friction in Linear Ball Bearings and Ball Screws", ASME J. Tribol.
+   141(8), DOI 10.1115/1.4043630.
+   Sec. 2.4.1, Fig. 7, Eq. (33), Tables 1-3, Figs. 8-9.
+
 """
 
 from dataclasses import dataclass
@@ -80,9 +88,25 @@ class LinearPairCase:
         """
         Low-order numerical model (Eqs. 1-10) of the two-ball case.
 
-        The bottom groove deviates by theta (dbeta_BL = -theta, dbeta_BR = +theta, Sec.
-        2.4.1) unless ``dbeta_bl_rad`` / ``dbeta_br_rad`` set its two sides independently
-        (then theta must be 0; an unset side is 0).
+        Parameters
+        ----------
+        theta_rad : float
+            Bottom-groove deviation theta: dbeta_BL = -theta, dbeta_BR = +theta  [rad]
+            (Sec. 2.4.1); must be 0 when ``dbeta_bl_rad`` / ``dbeta_br_rad`` are given.
+        rho : float
+            Side force ratio N_x / N_y of ball 1; ball 2 carries -rho N_y  [1].
+        dbeta_tr_rad, dbeta_tl_rad : float, optional
+            Top-groove deviations; (-theta, theta) is Table 2's matched case (b)  [rad].
+        dbeta_bl_rad, dbeta_br_rad : float, optional
+            The bottom groove's two sides set independently instead of by theta; an unset
+            side is 0  [rad].
+
+        Returns
+        -------
+        PairResult
+            eps (fractions of v/2), f_b2b_n [N], p_f_w and p_b2b_w [W] at the configured v,
+            converged, valid and the reasons when not valid.
+
         """
         t0 = time.perf_counter()
         cfg, m = self.cfg, self.model
@@ -118,7 +142,21 @@ class LinearPairCase:
                           not notes, tuple(notes), "numerical")
 
     def analytical(self, theta_rad, rho, dbeta_tr_rad=0.0, dbeta_tl_rad=0.0):
-        """Analytical model (Eqs. 22, 30, 32) with the paper's diagonal loads; vectorised."""
+        """
+        Analytical model (Eqs. 22, 30, 32) with the paper's diagonal loads; vectorised.
+
+        Parameters
+        ----------
+        theta_rad, rho, dbeta_tr_rad, dbeta_tl_rad : float or array_like
+            As for ``numerical``  [rad], [1], [rad], [rad]; arrays broadcast together.
+
+        Returns
+        -------
+        PairResult or dict
+            A ``PairResult`` for scalar inputs; for arrays, a dict of arrays ``eps1``,
+            ``eps2`` [1], ``f_b2b_n`` [N], ``p_f_w``, ``p_b2b_w`` [W] and ``valid``.
+
+        """
         t0 = time.perf_counter()
         cfg = self.cfg
         theta, rho_, tr, tl = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (
@@ -159,7 +197,23 @@ class LinearPairCase:
         return self._hertz
 
     def numerical_grid(self, theta_rad, rho):
-        """Figs. 8(a), 9(a), 9(c): numerical model over a theta x rho grid (1-D axes)."""
+        """
+        Figs. 8(a), 9(a), 9(c): numerical model over a theta x rho grid.
+
+        Parameters
+        ----------
+        theta_rad : array_like, shape (n,)
+            Bottom-groove deviations  [rad].
+        rho : array_like, shape (m,)
+            Side force ratios  [1].
+
+        Returns
+        -------
+        dict
+            Arrays of shape (m, n): ``eps1``, ``eps2`` [1], ``f_b2b_n`` [N], ``p_f_w``,
+            ``p_b2b_w`` [W], ``converged`` and ``valid``.
+
+        """
         shape = (len(rho), len(theta_rad))
         out = {k: np.zeros(shape) for k in ("eps1", "eps2", "f_b2b_n", "p_f_w", "p_b2b_w")}
         out["converged"] = np.zeros(shape, dtype=bool)

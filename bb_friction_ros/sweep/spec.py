@@ -24,6 +24,7 @@ import hashlib
 import json
 import math
 from pathlib import Path
+import warnings
 import zlib
 
 import numpy as np
@@ -253,9 +254,14 @@ def _parameter(name, parameters, model, path):
         raise ConfigError(f"{path}: parameter names are strings, got {name!r}")
     resolved = si_key(name, parameters)
     if resolved is not None:
-        return parameters[resolved[0]], resolved[1]
+        param = parameters[resolved[0]]
+        if param.name != resolved[0]:       # an old name of a renamed config field
+            warnings.warn(f"{path}: renamed to {param.name}; read as {param.name}, please "
+                          f"write {param.name}", FutureWarning, stacklevel=2)
+        return param, resolved[1]
+    known = sorted(k for k, p in parameters.items() if p.name == k)
     raise ConfigError(f"{path}: unknown parameter of model {model.name} (known: "
-                      f"{', '.join(sorted(parameters))}; edge units *_deg, *_mm, *_um)")
+                      f"{', '.join(known)}; edge units *_deg, *_mm, *_um)")
 
 
 def _number(value, path):

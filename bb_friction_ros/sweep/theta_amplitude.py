@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 
+from bb_friction_ros import paper
 from bb_friction_ros.ball_screw.screw_model import ScrewModel
 from bb_friction_ros.ball_screw.simulation import fig21_features, run_whole_screw
 from bb_friction_ros.ball_screw.whole_screw import WholeScrew
@@ -28,11 +29,11 @@ from bb_friction_ros.sweep.spec import load_spec
 SPEC_NAME = "sweeps/theta_amplitude_fig21.yaml"
 AMPLITUDE = "errors.theta_amplitude_rad"
 ELASTIC = "elastic_load_distribution"
-# Fig. 21 as the paper states it (Sec. 3.4 text): peak share, its angle, the zero.
-PAPER_PEAK_SHARE = 0.496
-PAPER_PEAK_ANGLE_DEG = 126.0
-PAPER_ZERO_ANGLE_DEG = 306.0
-PAPER_GROUPS = 4
+# Fig. 21 as the paper states it (Sec. 3.4 text; paper.py): peak share, its angle, the zero.
+PAPER_PEAK_SHARE = paper.B2B_PEAK_SHARE.value / 100.0
+PAPER_PEAK_ANGLE_DEG = paper.B2B_PEAK_NUT_ANGLE.value
+PAPER_ZERO_ANGLE_DEG = paper.B2B_ZERO_NUT_ANGLE.value
+PAPER_GROUPS = paper.B2B_GROUPS.value
 # Half-width of the amplitude window of the calibration's straight-line fit (see
 # ``calibrate_amplitude``): 2 grid steps of the full sweep either side, 1 of the coarse one.
 FIT_WINDOW_RAD = math.radians(0.5)
@@ -119,14 +120,14 @@ def plot_theta_sweep(rows, path, calibrated_deg=None, config_deg=None):
               ("max_groups", 1.0, "B2B contact groups (max)", PAPER_GROUPS),
               ("fig21_b2g_torque_variation", 100.0, "ball-groove torque (max-min)/mean [%]",
                None)]
-    for ax, (name, factor, label, paper) in zip(axes.flat, panels):
+    for ax, (name, factor, label, stated) in zip(axes.flat, panels):
         for flag, style, text in ((0.0, "o-", "rigid"), (1.0, "s--", "elastic")):
             sel = rows[ELASTIC] == flag
             amp = np.degrees(rows[AMPLITUDE][sel])
             k = np.argsort(amp)
             ax.plot(amp[k], factor * rows[name][sel][k], style, ms=4, label=text)
-        if paper is not None:
-            ax.axhline(paper, color="r", lw=0.8, label="paper")
+        if stated is not None:
+            ax.axhline(stated, color="r", lw=0.8, label="paper")
         else:
             ax.text(0.02, 0.92, "paper: 'barely has variation'", transform=ax.transAxes,
                     fontsize=8, color="r")
