@@ -74,10 +74,19 @@ def solve_two_ball_module(model, theta1_rad, theta2_rad, axial_load_n, nut_veloc
         else nut_velocity_rad_s
     sign = 1.0 if omega_n >= 0.0 else -1.0
     b = model.ball
+    if model.preload_load() <= 0.0 and abs(axial_load_n) <= cfg.solver.min_axial_load_n:
+        # No preload and no load: no ball is loaded, so there is no friction (as in
+        # WholeScrew.step), rather than a solve of a system with no stiffness.
+        return _unloaded_result(model, sign, axial_load_n, t0)
     centres = b.arc_centres(np.array([theta1_rad, theta2_rad]), 0.0, 0.0)
     scale = model.force_scale(2, axial_load_n)
     free = model.cold_solve(np.array([theta1_rad, theta2_rad]), 0.0, 0.0, sign,
                             axial_load_n)
+    if not free.converged or free.x.shape[0] != 2:
+        # The free balls did not converge (a failed load continuation even returns a
+        # one-ball state): there is no start for the contact solve, and its last iterate is
+        # no result.  Flag it, with no numbers, the same on every run.
+        return _failed_result(sign, t0)
     rates = free.x[:, 2] * sign
     rear = int(np.argmax(rates))
     front = 1 - rear
@@ -103,6 +112,26 @@ def solve_two_ball_module(model, theta1_rad, theta2_rad, axial_load_n, nut_veloc
         loads_n=con.terms["load"].copy(), converged=bool(free.converged and con.converged),
         solve_time_s=time.perf_counter() - t0,
         power_balance_error=abs(omega_n * torque - loss) / max(loss, 1e-300))
+
+
+def _unloaded_result(model, sign, axial_load_n, t0):
+    """Zero friction of two unloaded balls (|W| <= solver.min_axial_load_n, no preload)."""
+    rate = float(model.ball.rolling_guess(1, sign)[0, 2] * sign)
+    return ModuleResult(
+        f_b2b_n=0.0, friction_increase=0.0, torque_nm=0.0, torque_no_b2b_nm=0.0, loss_w=0.0,
+        loss_no_b2b_w=0.0, b2b_loss_w=0.0, omega_ratio_free=(rate, rate), omega_ratio=rate,
+        rear_ball=1, loads_n=np.zeros((2, 4)), converged=True,
+        solve_time_s=time.perf_counter() - t0, power_balance_error=0.0)
+
+
+def _failed_result(sign, t0):
+    """Return a non-converged module: NaN numbers (printed as null), ``converged = False``."""
+    nan = float("nan")
+    return ModuleResult(
+        f_b2b_n=nan, friction_increase=nan, torque_nm=nan, torque_no_b2b_nm=nan, loss_w=nan,
+        loss_no_b2b_w=nan, b2b_loss_w=nan, omega_ratio_free=(nan, nan), omega_ratio=nan,
+        rear_ball=0, loads_n=np.full((2, 4), nan), converged=False,
+        solve_time_s=time.perf_counter() - t0, power_balance_error=nan)
 
 
 __all__ = ["ScrewModel", "ModuleResult", "solve_two_ball_module"]

@@ -10,7 +10,7 @@ import dataclasses
 import math
 from typing import ClassVar
 
-from bb_friction_ros.config import ConfigError, field
+from bb_friction_ros.config import MEMORY_LIMIT_MIB, ConfigError, check_memory, field
 
 _DEG = math.pi / 180.0
 
@@ -150,6 +150,18 @@ class SolverSettings:
                                  hi=4096)
     map_azimuth_nodes: int = field(256, "1", "azimuth nodes of the friction map", lo=16,
                                    hi=8192)
+    map_memory_limit_mib: float = field(MEMORY_LIMIT_MIB, "MiB", "largest memory the "
+                                        "friction map's build may need; more is refused "
+                                        "before it starts", lo=0.0, lo_open=True)
+
+    def check(self, path):
+        """Cross-field checks: the friction map fits the memory limit (issue 13 #20)."""
+        from bb_friction_ros.contact.friction_maps import sphere_map_bytes
+        check_memory(sphere_map_bytes(self.map_polar_nodes, self.map_azimuth_nodes),
+                     self.map_memory_limit_mib,
+                     f"{path}.map_polar_nodes x map_azimuth_nodes",
+                     f"a friction map of {self.map_polar_nodes} x {self.map_azimuth_nodes} "
+                     "nodes", f"{path}.map_memory_limit_mib")
 
 
 @dataclasses.dataclass(frozen=True)

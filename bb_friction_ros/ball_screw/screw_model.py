@@ -126,6 +126,10 @@ class ScrewModel:
             sol = self.solver.solve(x, u, centres0, sign, current,
                                     self.force_scale(1, current), none, none, zero_set)
         if not sol.converged:
+            # Still one ball's state: give each of the n balls a copy, so that a caller's
+            # next solve gets arrays of its own size (the compiled kernel does not check
+            # bounds; a one-row state read as n rows was undefined memory, issue 13 #8).
+            sol.x = np.repeat(sol.x, n, axis=0)
             return sol
         x, u = np.repeat(sol.x, n, axis=0), sol.u
         screw_shift = np.broadcast_to(np.asarray(screw_shift_m, dtype=float), (n,))

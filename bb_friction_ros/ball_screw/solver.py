@@ -250,6 +250,13 @@ class EquilibriumSolver:
         """
         st = self.settings
         b = self.ball
+        # The kernel does not check bounds: refuse mismatched arrays here rather than read
+        # memory that is not theirs (which made results differ from run to run).
+        n = np.shape(x)[0]
+        if np.shape(centres)[0] != n or (np.size(rear) and max(np.max(rear), np.max(front))
+                                         >= n) or np.size(f_hat) != np.size(rear):
+            raise ValueError(f"solve_active: {n} ball states, {np.shape(centres)[0]} "
+                             f"centres, {np.size(rear)} pairs, {np.size(f_hat)} forces")
         cst = self._cst.get(self.extra_oversize_m)
         if cst is None:
             cst = kernel.pack_constants(b, self.extra_oversize_m)

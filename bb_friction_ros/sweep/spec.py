@@ -45,6 +45,14 @@ DISTRIBUTIONS = {            # kind -> its parameters, in the order the draw use
 }
 
 
+# Memory estimate of the results (issue 13 #20): every column is 8 bytes a row but the
+# text ones: the converged flag, the status (offset and ~12 characters) and the reason
+# (offset; null when ok) take about this much a row.
+_ROW_TEXT_BYTES = 24
+# results.parquet is compacted in memory: the parts read, then their sorted copy.
+_COMPACT_COPIES = 2
+
+
 @dataclasses.dataclass(frozen=True)
 class Axis:
     """A grid axis: a parameter (SI name) and its values (SI)."""
@@ -118,6 +126,12 @@ class SweepSpec:
     def n_batches(self):
         """Return the number of Dask tasks (batches of ``batch_size`` samples)."""
         return -(-self.n_samples // self.batch_size)
+
+    @property
+    def results_bytes(self):
+        """Return the memory [bytes] the results need when they are compacted (an estimate)."""
+        columns = 3 + len(self.input_names) + len(self.outputs)
+        return _COMPACT_COPIES * self.n_samples * (8 * columns + _ROW_TEXT_BYTES)
 
     @property
     def input_names(self):
