@@ -109,8 +109,9 @@ def fig21_run(config, amplitude_rad, model=None):
 
 def plot_theta_sweep(rows, path, calibrated_deg=None, config_deg=None):
     """Plot the whole sweep: each Fig. 21 feature over the amplitude, rigid and elastic, paper."""
-    import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(2, 3, figsize=(12, 6.5))
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=(12, 6.5))
+    axes = fig.subplots(2, 3)
     panels = [("fig21_peak_b2b_share", 100.0, "peak B2B / ball-groove torque [%]",
                100 * PAPER_PEAK_SHARE),
               ("fig21_peak_nut_angle_rad", 180 / math.pi, "nut angle of the peak [deg]",
@@ -148,5 +149,4 @@ def plot_theta_sweep(rows, path, calibrated_deg=None, config_deg=None):
     fig.suptitle("Fig. 19's unstated theta amplitude: Fig. 20-21 features over the sweep")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
