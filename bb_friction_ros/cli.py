@@ -168,8 +168,13 @@ def _add_replay_parser(sub):
 
 def _replay_settings(args):
     """Return the node's parameters for replay: the params file, then the flags (checked)."""
-    from bb_friction_ros.node_parameters import load_params_file, node_parameters
-    settings = load_params_file(args.params_file) if args.params_file else None
+    from bb_friction_ros.node_parameters import load_params_file, NODE_NAME, node_parameters
+
+    def warn(name):
+        print(f"bb-friction replay: warning: {args.params_file}: unknown parameter "
+              f"{NODE_NAME}.{name} ignored", file=sys.stderr)
+
+    settings = load_params_file(args.params_file, warn) if args.params_file else None
     changes = {}
     if args.nut_joint:
         changes["nut_joint"] = args.nut_joint
@@ -203,7 +208,7 @@ def _add_node_parser(sub):
 
 
 def _run_node(args):
-    from bb_friction_ros.node import main as node_main
+    from bb_friction_ros.node_entry import main as node_main
     ros_args = ["--ros-args"] + (["--params-file", args.params_file] if args.params_file
                                  else [])
     return node_main(["bb-friction-node"] + ros_args)

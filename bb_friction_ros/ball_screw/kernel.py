@@ -46,8 +46,9 @@ try:
     def _jit(fn):
         # fastmath limited to FMA contraction, reciprocals and reassociation (20 % faster
         # evaluation, agrees with the numpy path to ~1e-14); never nnan/ninf: the line
-        # search tests for non-finite residuals.
-        return numba.njit(cache=True, error_model="numpy",
+        # search tests for non-finite residuals.  nogil: the live node's executor thread
+        # takes and answers inputs while the model thread is inside a solve.
+        return numba.njit(cache=True, error_model="numpy", nogil=True,
                           fastmath={"contract", "arcp", "reassoc"})(fn)
 except ImportError:        # pragma: no cover - numba is an exec_depend
     HAVE_NUMBA = False
