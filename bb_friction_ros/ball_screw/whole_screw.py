@@ -17,8 +17,9 @@ indeterminate in this model).  Load range (``config.validity``): a load whose me
 load exceeds the model's limit (contact ellipse a / R_B, Hertz pressure; about 10 kN for
 Table 4) is not solved: the step returns ``converged = False``, ``in_load_range = False``
 and zero torques, and keeps the state.  A solution with any single contact above the limit
-keeps its numbers with ``in_load_range = False``.  Each step returns the friction torque on the nut
-T_f = T_nut - W p / 2pi split into ball-groove and B2B parts (by their losses), the drive
+keeps its numbers with ``in_load_range = False`` (an unconverged step inside the range keeps
+``in_load_range = True``: its iterate's contact loads mean nothing).  Each step returns the
+friction torque on the nut T_f = T_nut - W p / 2pi split into ball-groove and B2B parts (by their losses), the drive
 power omega_N T_f and the total loss (equal to solver precision), every ball's azimuth,
 omega_B, contact loads, and the B2B contact groups (ball ids rear-first with their forces).
 
@@ -340,6 +341,9 @@ class WholeScrew:
             azimuth_rad=phi, theta_rad=theta, omega_b_rad_s=self.ratio * omega_n,
             loads_n=sol.terms["load"].copy(), b2b_forces_n=self._forces.copy(),
             groups=groups, ball_axial_loads_n=-sol.terms["axial"].copy(),
-            in_load_range=bool(sol.terms["load"].max() <= self.max_contact_load_n),
+            # Per contact only for a solution: an unconverged iterate's loads mean nothing,
+            # and its load |W| already passed the range check in ``step``.
+            in_load_range=bool(not sol.converged
+                               or sol.terms["load"].max() <= self.max_contact_load_n),
             iterations=sol.iterations,
             solve_time_s=time.perf_counter() - t0)
