@@ -19,9 +19,10 @@ Table 4) is not solved: the step returns ``converged = False``, ``in_load_range 
 and zero torques, and keeps the state.  A solution with any single contact above the limit
 keeps its numbers with ``in_load_range = False`` (an unconverged step inside the range keeps
 ``in_load_range = True``: its iterate's contact loads mean nothing).  Each step returns the
-friction torque on the nut T_f = T_nut - W p / 2pi split into ball-groove and B2B parts (by their losses), the drive
-power omega_N T_f and the total loss (equal to solver precision), every ball's azimuth,
-omega_B, contact loads, and the B2B contact groups (ball ids rear-first with their forces).
+friction torque on the nut T_f = T_nut - W p / 2pi split into ball-groove and B2B parts (by
+their losses), the drive power omega_N T_f and the total loss (equal to solver precision),
+every ball's azimuth, omega_B, contact loads, and the B2B contact groups (ball ids
+rear-first with their forces).
 
 Model: N balls on a closed loop of ``loaded_turns`` turns in the nut (the return tube has
 zero length, so the first and last balls are neighbours).  The axial load W reaches the balls
