@@ -39,7 +39,24 @@ def main(args=None):
         from bb_friction_ros.node import main as node_main
     except KeyboardInterrupt:       # SIGINT or SIGTERM (Shutdown) while importing
         return 0
+    except ImportError as exc:
+        # A signal inside a C extension's module init (rclpy's pybind11 module) comes out as
+        # ImportError("initialization failed") caused by the KeyboardInterrupt
+        if _interrupted(exc):
+            return 0
+        raise
     return node_main(args)
+
+
+def _interrupted(exc):
+    """Return True if ``exc`` was caused by a KeyboardInterrupt (Shutdown included)."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
 
 
 if __name__ == "__main__":

@@ -8,10 +8,8 @@ domain, early signals, and bad parameters.
 """
 
 import math
-import os
 import signal
 import subprocess
-import sys
 import threading
 import time
 
@@ -24,7 +22,7 @@ from bb_friction_ros.node import FrictionNode
 from bb_friction_ros.config import bundled_config
 from bb_friction_ros.replay import run_events
 from bb_friction_ros.runner import build_runner, InputAssembler
-from bb_friction_ros.testing import play_through_node
+from bb_friction_ros.testing import console_script, play_through_node
 from test_feedforward import ScriptedScrew
 
 
@@ -210,13 +208,44 @@ def test_two_nodes_on_one_domain_are_reported(ros_context):
                                          (signal.SIGTERM, 1.0), (signal.SIGINT, 1.2)])
 def test_early_signal_exits_cleanly(sig, delay_s):
     """Finding 4: SIGTERM/SIGINT during start-up: exit 0, no traceback."""
-    exe = os.path.join(os.path.dirname(sys.executable), "friction_node")
-    proc = subprocess.Popen([exe], stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen([console_script("friction_node")], stderr=subprocess.PIPE,
+                            text=True)
     time.sleep(delay_s)
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=60)
     assert "Traceback" not in err and "RCLError" not in err, err
     assert proc.returncode == 0, err
+
+
+@pytest.mark.parametrize("cause", [KeyboardInterrupt, None])
+def test_signal_inside_rclpy_c_extension_init_is_a_clean_exit(monkeypatch, cause):
+    """
+    Finding 4: a SIGTERM during rclpy's pybind11 module init surfaces as ImportError.
+
+    ("initialization failed", caused by the handler's Shutdown; seen under colcon test.)  It is
+    a clean exit; an ImportError of any other cause is still raised.
+    """
+    import builtins
+    from bb_friction_ros import node_entry
+    real_import = builtins.__import__
+
+    def importing(name, *args, **kwargs):
+        if name == "bb_friction_ros.node":
+            try:
+                if cause is not None:
+                    raise node_entry.Shutdown(signal.SIGTERM)
+                raise OSError("libfoo.so: cannot open shared object file")
+            except (KeyboardInterrupt, OSError) as exc:
+                raise ImportError("initialization failed") from exc
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(node_entry, "install_handlers", lambda: None)
+    monkeypatch.setattr(builtins, "__import__", importing)
+    if cause is None:
+        with pytest.raises(ImportError):
+            node_entry.main()
+    else:
+        assert node_entry.main() == 0
 
 
 def test_empty_nut_joint_is_refused(ros_context):
