@@ -138,6 +138,8 @@ class ModelRunner:
             raise ValueError(f"model_rate_hz must be > 0, got {model_rate_hz}")
         self.screw = screw
         self.terms = terms
+        # stateful per-sample evaluation: the inertia term's causal acceleration filter
+        self._live_terms = terms.live() if terms is not None else None
         self._first_stamp = None
         self.period_s = 1.0 / model_rate_hz
         self.stats = RunnerStats()
@@ -152,6 +154,8 @@ class ModelRunner:
         self._last_stamp = None
         self._model_stamp = None
         self._state = None
+        if self._live_terms is not None:
+            self._live_terms.reset()
 
     def warm_up(self, axial_load_n, nut_velocity_rad_s):
         """
@@ -203,10 +207,10 @@ class ModelRunner:
                 self.stats.skipped_steps += 1
         st = self._state
         extra = 0.0
-        if self.terms is not None:
-            extra = float(self.terms.torque_nm(sample.stamp_s - self._first_stamp,
+        if self._live_terms is not None:
+            extra = self._live_terms.torque_nm(sample.stamp_s, sample.stamp_s - self._first_stamp,
                                                sample.nut_angle_rad, sample.nut_velocity_rad_s,
-                                               sample.axial_load_n))
+                                               sample.axial_load_n)
         return Prediction(sample.stamp_s, sample.nut_angle_rad, sample.nut_velocity_rad_s,
                           sample.axial_load_n, st.torque_total_nm + extra, st.torque_b2g_nm,
                           st.torque_b2b_nm, extra, bool(st.converged),

@@ -7,7 +7,8 @@ and a median absolute deviation ignores the few steps at reversals.  For white n
 sigma the differences have std sigma sqrt(2).
 
 A regime is a bin of one variable: direction, |nut speed| per direction, nut angle within a
-revolution, axial load, time.  Per bin we report the mean residual and the mean "drag excess"
+revolution, axial load, time, acceleration (accelerating / decelerating) and the nut's travel
+along the stroke.  Per bin we report the mean residual and the mean "drag excess"
 (residual times sign(omega), over moving samples: a dissipative effect cancels in the plain
 mean over both directions but not in this one), each with its z-value against the noise
 standard error.
@@ -22,14 +23,67 @@ import numpy as np
 MAD_TO_STD = 1.4826
 
 
-def noise_std_nm(residual_nm):
-    """Return the robust noise std [N m] of a residual from its first differences."""
+def _diff_std(r, lag):
+    d = r[lag:] - r[:-lag]
+    return float(MAD_TO_STD * np.median(np.abs(d - np.median(d))) / math.sqrt(2.0))
+
+
+@dataclasses.dataclass(frozen=True)
+class NoiseModel:
+    """
+    The noise of a residual: its std and its integrated autocorrelation time.
+
+    ``std_nm`` is the plateau of the lag-L difference estimate (below), ``lag`` the L it was
+    read at, ``std_lag1_nm`` the classic lag-1 value and ``tau`` (samples, >= 1) the
+    integrated autocorrelation time of an AR(1) noise with the lag-1 correlation
+    rho = 1 - (std_lag1 / std)^2: tau = (1 + rho) / (1 - rho).  A mean over n samples then
+    has the standard error std sqrt(tau / n).
+    """
+
+    std_nm: float
+    std_lag1_nm: float
+    lag: int
+    tau: float
+
+    def as_dict(self):
+        """Return the JSON form."""
+        return {"std_nm": self.std_nm, "std_lag1_nm": self.std_lag1_nm, "lag_samples": self.lag,
+                "autocorrelation_time_samples": self.tau}
+
+
+def noise_model(residual_nm, max_lag=64, plateau_ratio=1.1):
+    """
+    Estimate the noise of a residual [N m] from its differences at growing lags.
+
+    The MAD of lag-L differences, x 1.4826 / sqrt(2), is the noise std once the noise has
+    decorrelated over L samples, while every candidate effect (slow in time) still cancels
+    and the MAD ignores the few steps at reversals.  White noise decorrelates at L = 1.
+    Measured torque is often smooth at the sample rate (an averaging recorder, a sensor
+    filter): its noise is correlated, the lag-1 estimate is several times too small, and a
+    regime table built on it calls everything significant.  So L doubles from 1 until the
+    estimate grows by less than ``plateau_ratio`` (or reaches ``max_lag``).
+    """
     r = np.asarray(residual_nm, dtype=float)
     r = r[np.isfinite(r)]
     if r.size < 3:
-        return float("nan")
-    d = np.diff(r)
-    return float(MAD_TO_STD * np.median(np.abs(d - np.median(d))) / math.sqrt(2.0))
+        return NoiseModel(float("nan"), float("nan"), 1, 1.0)
+    s1 = _diff_std(r, 1)
+    lag, s = 1, s1
+    while 2 * lag <= max_lag and 2 * lag < r.size // 4:
+        s2 = _diff_std(r, 2 * lag)
+        if s2 < plateau_ratio * s:
+            break
+        lag, s = 2 * lag, s2
+    tau = 1.0
+    if s > 0 and lag > 1:
+        rho = min(max(1.0 - (s1 / s) ** 2, 0.0), 0.99)
+        tau = (1.0 + rho) / (1.0 - rho)
+    return NoiseModel(s, s1, lag, tau)
+
+
+def noise_std_nm(residual_nm):
+    """Return the robust noise std [N m] of a residual (``noise_model`` with defaults)."""
+    return noise_model(residual_nm).std_nm
 
 
 @dataclasses.dataclass(frozen=True)
@@ -46,6 +100,10 @@ class Bin:
 def _value(variable, x):
     if variable in ("direction", "speed"):
         return np.abs(x.nut_velocity_rad_s)
+    if variable == "acceleration":
+        return x.nut_accel_rad_s2
+    if variable == "stroke":
+        return x.nut_angle_rad
     if variable == "angle":
         return np.mod(x.nut_angle_rad, 2.0 * math.pi)
     if variable == "load":
@@ -98,6 +156,15 @@ def make_bins(x, settings):
         edges = _quantile_edges(values, n)
         for lo, hi in zip(edges[:-1], edges[1:]):
             bins.append(Bin(variable, f"[{_fmt(lo)}, {_fmt(hi)}] {unit}", lo, hi))
+    if x.nut_accel_rad_s2 is not None:
+        bins += _accel_bins(x, settings)
+    lo, hi = float(np.min(x.nut_angle_rad)), float(np.max(x.nut_angle_rad))
+    if hi > lo:
+        edges = np.linspace(lo, hi, settings.stroke_bins + 1)
+        edges[-1] = np.nextafter(edges[-1], np.inf)
+        for a, b in zip(edges[:-1], edges[1:]):
+            bins.append(Bin("stroke", f"[{a / (2 * math.pi):.3g}, {b / (2 * math.pi):.3g}] "
+                            "rev", a, b))
     t0, t1 = float(np.min(x.t_s)), float(np.max(x.t_s))
     edges = np.linspace(t0, t1, settings.time_bins + 1)
     edges[-1] = np.nextafter(edges[-1], np.inf)
@@ -106,8 +173,34 @@ def make_bins(x, settings):
     return bins
 
 
-def bin_stats(b, x, residual_nm, noise_nm, settings):
-    """Return the statistics of ``residual_nm`` in bin ``b`` (a dict, JSON-ready)."""
+def _accel_bins(x, settings):
+    """Bins of accelerating (alpha > 0) and decelerating (alpha < 0) samples by |alpha|."""
+    a = x.nut_accel_rad_s2
+    finite = np.isfinite(a)
+    if not finite.any():
+        return []
+    floor = settings.accel_regime_fraction * float(np.percentile(np.abs(a[finite]), 99))
+    out = []
+    if floor <= 0:
+        return out
+    for sign, name in ((+1, "+"), (-1, "-")):
+        mag = np.abs(a[finite & (np.sign(a) == sign) & (np.abs(a) > floor)])
+        if mag.size == 0:
+            continue
+        edges = _quantile_edges(mag, settings.accel_bins)
+        for lo, hi in zip(edges[:-1], edges[1:]):
+            out.append(Bin("acceleration", f"{name}[{_fmt(lo)}, {_fmt(hi)}] rad/s^2",
+                           sign * lo if sign > 0 else -hi, sign * hi if sign > 0 else -lo))
+    return out
+
+
+def bin_stats(b, x, residual_nm, noise_nm, settings, tau=1.0):
+    """
+    Return the statistics of ``residual_nm`` in bin ``b`` (a dict, JSON-ready).
+
+    The standard error of a mean over n samples is noise sqrt(tau / n): correlated noise
+    (``tau`` > 1 samples) averages out more slowly than white noise.
+    """
     m = mask_of(b, x, settings.standstill_speed_rad_s) & np.isfinite(residual_nm)
     n = int(m.sum())
     row = {"variable": b.variable, "label": b.label, "n": n, "mean_residual_nm": None,
@@ -120,11 +213,11 @@ def bin_stats(b, x, residual_nm, noise_nm, settings):
     row["rms_residual_nm"] = float(np.sqrt(np.mean(r ** 2)))
     sign = np.sign(x.nut_velocity_rad_s[m])
     moving = np.abs(x.nut_velocity_rad_s[m]) > settings.standstill_speed_rad_s
-    se = noise_nm / math.sqrt(n) if noise_nm > 0 else math.nan
+    se = noise_nm * math.sqrt(tau / n) if noise_nm > 0 else math.nan
     row["z_mean"] = float(row["mean_residual_nm"] / se) if se > 0 else None
     if moving.any():
         row["mean_drag_excess_nm"] = float(np.mean(r[moving] * sign[moving]))
-        se_d = noise_nm / math.sqrt(int(moving.sum())) if noise_nm > 0 else math.nan
+        se_d = noise_nm * math.sqrt(tau / int(moving.sum())) if noise_nm > 0 else math.nan
         row["z_drag"] = float(row["mean_drag_excess_nm"] / se_d) if se_d > 0 else None
     row["significant"] = n >= settings.min_bin_samples and any(
         _is_significant(mean, z, noise_nm, settings)
@@ -140,6 +233,7 @@ def _is_significant(mean, z, noise_nm, settings):
         * noise_nm
 
 
-def regime_table(bins, x, residual_nm, noise_nm, settings):
+def regime_table(bins, x, residual_nm, noise_nm, settings, tau=1.0):
     """Return one stats row per bin."""
-    return [bin_stats(b, x, np.asarray(residual_nm, float), noise_nm, settings) for b in bins]
+    return [bin_stats(b, x, np.asarray(residual_nm, float), noise_nm, settings, tau)
+            for b in bins]
