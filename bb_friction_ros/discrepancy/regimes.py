@@ -35,9 +35,10 @@ class NoiseModel:
 
     ``std_nm`` is the plateau of the lag-L difference estimate (below), ``lag`` the L it was
     read at, ``std_lag1_nm`` the classic lag-1 value and ``tau`` (samples, >= 1) the
-    integrated autocorrelation time of an AR(1) noise with the lag-1 correlation
-    rho = 1 - (std_lag1 / std)^2: tau = (1 + rho) / (1 - rho).  A mean over n samples then
-    has the standard error std sqrt(tau / n).
+    integrated autocorrelation time 1 + 2 sum_k rho_k, with rho_k = 1 - (std_k / std)^2
+    from the lag-k estimates (interpolated between the doubling lags, 0 beyond L).  A mean
+    over n samples then has the standard error std sqrt(tau / n), and the evidence of n
+    correlated samples is that of n / tau independent ones.
     """
 
     std_nm: float
@@ -68,16 +69,19 @@ def noise_model(residual_nm, max_lag=64, plateau_ratio=1.1):
     if r.size < 3:
         return NoiseModel(float("nan"), float("nan"), 1, 1.0)
     s1 = _diff_std(r, 1)
-    lag, s = 1, s1
-    while 2 * lag <= max_lag and 2 * lag < r.size // 4:
-        s2 = _diff_std(r, 2 * lag)
-        if s2 < plateau_ratio * s:
+    lags, stds = [1], [s1]
+    while 2 * lags[-1] <= max_lag and 2 * lags[-1] < r.size // 4:
+        s2 = _diff_std(r, 2 * lags[-1])
+        if s2 < plateau_ratio * stds[-1]:
             break
-        lag, s = 2 * lag, s2
+        lags.append(2 * lags[-1])
+        stds.append(s2)
+    lag, s = lags[-1], stds[-1]
     tau = 1.0
     if s > 0 and lag > 1:
-        rho = min(max(1.0 - (s1 / s) ** 2, 0.0), 0.99)
-        tau = (1.0 + rho) / (1.0 - rho)
+        rho = np.clip(1.0 - (np.array(stds) / s) ** 2, 0.0, 1.0)
+        k = np.arange(1, lag + 1)
+        tau = 1.0 + 2.0 * float(np.sum(np.interp(k, lags, rho)))
     return NoiseModel(s, s1, lag, tau)
 
 

@@ -69,16 +69,34 @@ def with_acceleration(rec, settings, spec=None):
     """
     Return ``rec`` with its nut acceleration: the CSV's own column, or derived.
 
-    Derived: the zero-phase ``AccelerationFilter`` on the nut velocity per continuous segment
-    (``spec`` = filter settings, from the recording when None).  Samples of segments too short
-    to derive it are NaN.  Return (recording, spec).
+    Derived: the zero-phase ``AccelerationFilter`` on the nut velocity per continuous
+    segment.  Runs (the stamps restart) are filtered on their own, each with the gap rule and
+    the cut-off limit of its own sample rate (a recording of several recorder files may mix
+    rates); ``spec`` (filter settings) overrides the cut-off.  Samples of segments too short
+    to derive it are NaN.  Return (recording, spec of the whole recording).
     """
-    spec = spec or acceleration_filter_of(rec, settings)
-    if rec.nut_accel_rad_s2 is not None or spec is None:
-        return rec, spec
-    accel = zero_phase_acceleration(rec.t_s, rec.nut_velocity_rad_s, spec["accel_cutoff_hz"],
-                                    spec["max_gap_s"], settings.accel_min_segment_samples)
-    return dataclasses.replace(rec, nut_accel_rad_s2=accel), spec
+    whole = acceleration_filter_of(rec, settings)
+    if spec is not None and whole is not None:
+        whole["accel_cutoff_hz"] = spec["accel_cutoff_hz"]
+    if rec.nut_accel_rad_s2 is not None or whole is None:
+        return rec, whole
+    accel = np.full(len(rec), np.nan)
+    starts = np.concatenate(([0], np.flatnonzero(np.diff(rec.t_s) < 0.0) + 1, [len(rec)]))
+    cutoffs = []
+    for lo, hi in zip(starts[:-1], starts[1:]):
+        run = rec.take(slice(lo, hi))
+        own = acceleration_filter_of(run, settings)
+        if own is None:
+            continue
+        fc = min(whole["accel_cutoff_hz"], own["accel_cutoff_hz"])
+        cutoffs.append(fc)
+        accel[lo:hi] = zero_phase_acceleration(run.t_s, run.nut_velocity_rad_s, fc,
+                                               own["max_gap_s"],
+                                               settings.accel_min_segment_samples)
+    info = dict(rec.info)
+    if cutoffs and (min(cutoffs) < whole["accel_cutoff_hz"]):
+        info["acceleration_run_cutoff_hz"] = [min(cutoffs), max(cutoffs)]
+    return dataclasses.replace(rec, nut_accel_rad_s2=accel, info=info), whole
 
 
 def adequacy(x_fit, n_usable, settings):
@@ -131,16 +149,42 @@ def adequacy(x_fit, n_usable, settings):
                   f"{settings.min_samples_per_angle_bin} in each)")
         untested["lead_error"] = reason
         untested["angle_ripple"] = reason
-    travel = np.percentile(x_fit.nut_angle_rad, [5, 95])
-    if travel[1] - travel[0] < settings.min_stroke_revolutions * 2 * math.pi:
-        untested["stroke_position"] = (
-            f"the nut travels {(travel[1] - travel[0]) / (2 * math.pi):.3g} rev (P5-P95) in "
-            f"the fit part; need {settings.min_stroke_revolutions} rev to tell a change along "
-            "the stroke from a change in time (min_stroke_revolutions)")
+    stroke = _stroke_gap(x_fit, settings)
+    if stroke:
+        untested["stroke_position"] = stroke
     accel = x_fit.nut_accel_rad_s2
     if accel is None or not np.any(np.abs(accel) > 0):
         untested["inertia"] = "no acceleration in the fit part"
     return missing, untested
+
+
+def _stroke_gap(x, settings):
+    """
+    Return why stroke_position cannot be tested on inputs ``x`` ("" when it can).
+
+    A change along the stroke is told from a change in time, speed or direction only when
+    the nut passes the same stretch of the stroke in both directions: the travel (P5-P95 of
+    the cumulative angle) must reach ``min_stroke_revolutions`` and every one of
+    ``stroke_bins`` equal stretches must hold ``min_bin_samples`` moving samples in each
+    direction.
+    """
+    phi = x.nut_angle_rad
+    lo, hi = np.percentile(phi, [5, 95])
+    if hi - lo < settings.min_stroke_revolutions * 2 * math.pi:
+        return (f"the nut travels {(hi - lo) / (2 * math.pi):.3g} rev (P5-P95) in the fit "
+                f"part; need {settings.min_stroke_revolutions} rev to tell a change along the "
+                "stroke from a change in time (min_stroke_revolutions)")
+    w = x.nut_velocity_rad_s
+    moving = np.abs(w) > settings.standstill_speed_rad_s
+    edges = np.linspace(lo, hi, settings.stroke_bins + 1)
+    for sign in (+1, -1):
+        counts, _ = np.histogram(phi[moving & (np.sign(w) == sign)], bins=edges)
+        if counts.min() < settings.min_bin_samples:
+            return ("the nut does not pass every stretch of its stroke in both directions "
+                    f"(fewer than {settings.min_bin_samples} samples moving "
+                    f"{'+' if sign > 0 else '-'} in a stretch): a change along the stroke "
+                    "cannot be told from one with direction or time")
+    return ""
 
 
 @dataclasses.dataclass
