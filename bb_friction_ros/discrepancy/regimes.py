@@ -23,9 +23,44 @@ import numpy as np
 MAD_TO_STD = 1.4826
 
 
-def _diff_std(r, lag):
+# Two samples are in the same operating state when their speeds differ by less than this
+# fraction: then every candidate effect (a function of speed, direction, slow time) is nearly
+# equal at both, and their difference is noise.
+SAME_STATE_SPEED_FRACTION = 0.05
+# Pairs a lag needs for its estimate to count (fewer: the lag is too long for the recording).
+MIN_NOISE_PAIRS = 100
+
+
+def _diff_std(r, lag, same=None):
     d = r[lag:] - r[:-lag]
+    if same is not None:
+        d = d[same(lag)]
+    if d.size < MIN_NOISE_PAIRS:
+        return float("nan")
     return float(MAD_TO_STD * np.median(np.abs(d - np.median(d))) / math.sqrt(2.0))
+
+
+def _same_state(velocity, stamps):
+    """
+    Return lag -> mask of the pairs (i, i + lag) in one operating state and one run.
+
+    The speed tolerance is SAME_STATE_SPEED_FRACTION of the speed, and at least 3 times the
+    velocity signal's own sample-to-sample scatter (a quantised encoder speed jitters by a
+    count: that is still one operating state).
+    """
+    w = np.asarray(velocity, dtype=float)
+    run = np.cumsum(np.concatenate(([0], np.diff(stamps) < 0.0))) if stamps is not None \
+        else np.zeros(w.size)
+    dw = np.diff(w)
+    jitter = 3.0 * MAD_TO_STD * float(np.median(np.abs(dw - np.median(dw)))) \
+        if dw.size else 0.0
+
+    def same(lag):
+        a, b = w[:-lag], w[lag:]
+        tol = np.maximum(SAME_STATE_SPEED_FRACTION * np.maximum(np.abs(a), np.abs(b)), jitter)
+        return (np.abs(a - b) <= tol) & (np.sign(a) == np.sign(b)) & \
+            (run[:-lag] == run[lag:])
+    return same
 
 
 @dataclasses.dataclass(frozen=True)
@@ -52,7 +87,7 @@ class NoiseModel:
                 "autocorrelation_time_samples": self.tau}
 
 
-def noise_model(residual_nm, max_lag=64, plateau_ratio=1.1):
+def noise_model(residual_nm, max_lag=64, plateau_ratio=1.1, velocity=None, stamps=None):
     """
     Estimate the noise of a residual [N m] from its differences at growing lags.
 
@@ -63,16 +98,26 @@ def noise_model(residual_nm, max_lag=64, plateau_ratio=1.1):
     filter): its noise is correlated, the lag-1 estimate is several times too small, and a
     regime table built on it calls everything significant.  So L doubles from 1 until the
     estimate grows by less than ``plateau_ratio`` (or reaches ``max_lag``).
+
+    With the nut ``velocity`` (and ``stamps``, whose backward steps start new runs), only
+    pairs of samples in the same operating state count at lags above 1: the same direction,
+    speeds within SAME_STATE_SPEED_FRACTION, one run.  So a long lag does not straddle a
+    reversal or a speed change, where the effects themselves step.
     """
     r = np.asarray(residual_nm, dtype=float)
-    r = r[np.isfinite(r)]
+    ok = np.isfinite(r)
+    r = r[ok]
     if r.size < 3:
         return NoiseModel(float("nan"), float("nan"), 1, 1.0)
+    same = None
+    if velocity is not None:
+        same = _same_state(np.asarray(velocity, float)[ok],
+                           None if stamps is None else np.asarray(stamps, float)[ok])
     s1 = _diff_std(r, 1)
     lags, stds = [1], [s1]
     while 2 * lags[-1] <= max_lag and 2 * lags[-1] < r.size // 4:
-        s2 = _diff_std(r, 2 * lags[-1])
-        if s2 < plateau_ratio * stds[-1]:
+        s2 = _diff_std(r, 2 * lags[-1], same)
+        if not s2 < math.inf or s2 < plateau_ratio * stds[-1]:
             break
         lags.append(2 * lags[-1])
         stds.append(s2)

@@ -266,7 +266,8 @@ def analyse(rec, settings):
             untested["stribeck"] = ("no low-speed samples below the fast ones: the Stribeck "
                                     "velocity grid is empty")
     r = rec.torque_meas_nm - rec.torque_pred_nm
-    noise = regimes.noise_model(r, settings.noise_max_lag, settings.noise_plateau_ratio)
+    noise = regimes.noise_model(r, settings.noise_max_lag, settings.noise_plateau_ratio,
+                                rec.nut_velocity_rad_s, rec.t_s)
     fixed = {"inertia": spec} if spec else {}
     terms, trace, ctx = select(x_fit, r[fit_mask], settings, skip=tuple(untested),
                                fixed=fixed, tau=noise.tau)
