@@ -112,27 +112,23 @@ def _add_replay_parser(sub):
 
 
 def _replay_settings(args):
-    import dataclasses
-    from bb_friction_ros.replay import ReplaySettings
-    settings, config = ReplaySettings(), None
-    if args.params_file:
-        settings, config = ReplaySettings.from_params_file(args.params_file)
+    """Return the node's parameters for replay: the params file, then the flags (checked)."""
+    from bb_friction_ros.node_parameters import load_params_file, node_parameters
+    settings = load_params_file(args.params_file) if args.params_file else None
     changes = {}
     if args.nut_joint:
         changes["nut_joint"] = args.nut_joint
     if args.model_rate_hz is not None:
-        if not (math.isfinite(args.model_rate_hz) and args.model_rate_hz > 0):
-            raise ConfigError(f"--model-rate-hz: must be > 0, got {args.model_rate_hz}")
         changes["model_rate_hz"] = args.model_rate_hz
-    return dataclasses.replace(settings, **changes), args.config or config or None
+    return node_parameters(changes, *([settings] if settings else []))
 
 
 def _run_replay(args):
     from bb_friction_ros.bags import Topics
     from bb_friction_ros.replay import replay
-    settings, config = _replay_settings(args)
+    settings = _replay_settings(args)
     try:
-        summary = replay(args.bag, args.out, config=config, settings=settings,
+        summary = replay(args.bag, args.out, config=args.config, settings=settings,
                          topics=Topics(measured_torque=args.measured_topic),
                          progress=not args.no_progress)
     except (FileNotFoundError, ValueError) as exc:
@@ -183,11 +179,12 @@ def _run_make_demo_bag(args):
 
 def _demo_events(recording=None):
     from bb_friction_ros.config import bundled_config
-    from bb_friction_ros.demo import load_demo_recording, make_demo_events
-    from bb_friction_ros.replay import ReplaySettings, run_events
+    from bb_friction_ros.trajectories import load_demo_recording, make_demo_events
+    from bb_friction_ros.node_parameters import NodeParameters
+    from bb_friction_ros.replay import run_events
     from bb_friction_ros.runner import build_runner, InputAssembler
     cfg = load_demo_recording(recording or bundled_config("demo_recording.yaml"))
-    settings = ReplaySettings(nut_joint=cfg.nut_joint)
+    settings = NodeParameters(nut_joint=cfg.nut_joint)
 
     def predict(events):
         runner = build_runner(bundled_config("ball_screw.yaml"), settings.model_rate_hz)

@@ -25,7 +25,7 @@ def field(default, unit, doc, lo=None, hi=None, lo_open=False, hi_open=False):
         "unit": unit, "doc": doc, "lo": lo, "hi": hi, "lo_open": lo_open, "hi_open": hi_open})
 
 
-_EDGE_UNITS = (   # (suffix in YAML, suffix of the SI field, factor to SI)
+EDGE_UNITS = (   # (suffix in YAML, suffix of the SI field, factor to SI)
     ("_deg", "_rad", math.pi / 180.0),
     ("_mm_s", "_m_s", 1e-3),
     ("_mm", "_m", 1e-3),
@@ -33,26 +33,66 @@ _EDGE_UNITS = (   # (suffix in YAML, suffix of the SI field, factor to SI)
 )
 
 
-def _check_value(path, f, value):
-    meta = f.metadata
-    if isinstance(value, (list, tuple, dict)):
-        return value
-    if isinstance(value, str) and not isinstance(f.default, str):
-        try:    # YAML 1.1 reads 2.1e11 (no dot) as a string; users write it anyway
+def si_key(key, names):
+    """
+    Return (SI name, factor to SI) of a key written with or without an edge unit.
+
+    ``names`` holds the SI names (field names, or dotted parameter names: the unit is the
+    suffix of the last part either way).  ``theta_deg`` gives ``("theta_rad", pi / 180)``
+    when ``theta_rad`` is a name; a name gives itself with factor 1.  None when neither.
+    """
+    if key in names:
+        return key, 1.0
+    for edge, si, factor in EDGE_UNITS:
+        if key.endswith(edge) and key[: -len(edge)] + si in names:
+            return key[: -len(edge)] + si, factor
+    return None
+
+
+def parse_number(value, path, unit=""):
+    """
+    Return a YAML value as a number (int or float), or raise ConfigError naming ``path``.
+
+    YAML 1.1 (PyYAML) reads ``1e1`` or ``2.1e11`` (no dot) as strings; users write them
+    anyway, so a string that reads as a float is one.  Booleans are not numbers.  Parse
+    first, then convert the unit: the factor applies to the number, never to the string.
+    """
+    if isinstance(value, str):
+        try:
             value = float(value)
         except ValueError:
             pass
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        if isinstance(f.default, bool) and isinstance(value, bool):
-            return value
-        if isinstance(f.default, str) and isinstance(value, str):
-            return value
-        raise ConfigError(f"{path}: expected a number in {meta.get('unit', '')}, "
-                          f"got {value!r}")
-    value = float(value) if not isinstance(f.default, int) or isinstance(f.default, bool) \
-        else value
+        unit = f" in {unit}" if unit not in ("", "1", None) else ""
+        raise ConfigError(f"{path}: expected a number{unit}, got {value!r}")
+    return value
+
+
+def _is_integer_field(f):
+    return isinstance(f.default, int) and not isinstance(f.default, bool)
+
+
+def _check_value(path, f, value):
+    meta = f.metadata
+    if isinstance(f.default, (list, tuple)):
+        return value            # a sequence field: its owner converts and checks the items
+    if isinstance(f.default, bool):
+        if not isinstance(value, bool):
+            raise ConfigError(f"{path}: expected true or false, got {value!r}")
+        return value
+    if isinstance(f.default, str):
+        if not isinstance(value, str):
+            raise ConfigError(f"{path}: expected a string, got {value!r}")
+        return value
+    value = parse_number(value, path, meta.get("unit", ""))
     if not math.isfinite(value):
         raise ConfigError(f"{path}: must be finite, got {value!r}")
+    if _is_integer_field(f):
+        if value != int(value):
+            raise ConfigError(f"{path}: must be an integer ({meta['doc']}), got {value!r}")
+        value = int(value)
+    else:
+        value = float(value)
     lo, hi = meta.get("lo"), meta.get("hi")
     unit = "" if meta.get("unit") in (None, "1") else " " + meta["unit"]
     if lo is not None and (value < lo or (meta.get("lo_open") and value == lo)):
@@ -83,15 +123,14 @@ def from_mapping(cls, data, path):
     fields = {f.name: f for f in dataclasses.fields(cls)}
     kwargs = {}
     for key, value in data.items():
-        name, factor = key, 1.0
-        if key not in fields:
-            for edge, si, fac in _EDGE_UNITS:
-                if key.endswith(edge) and key[: -len(edge)] + si in fields:
-                    name, factor = key[: -len(edge)] + si, fac
-                    break
-            else:
-                known = ", ".join(sorted(fields))
-                raise ConfigError(f"{path}.{key}: unknown key (known: {known})")
+        if not isinstance(key, str):
+            raise ConfigError(f"{path}: key {key!r} is not a name (known: "
+                              f"{', '.join(sorted(fields))})")
+        resolved = si_key(key, fields)
+        if resolved is None:
+            known = ", ".join(sorted(fields))
+            raise ConfigError(f"{path}.{key}: unknown key (known: {known})")
+        name, factor = resolved
         if name in kwargs:
             raise ConfigError(f"{path}.{key}: given twice (also as {name})")
         f = fields[name]
@@ -100,8 +139,8 @@ def from_mapping(cls, data, path):
         if nested is not None:
             kwargs[name] = from_mapping(type(nested), value, sub)
             continue
-        if isinstance(value, (int, float)) and not isinstance(value, bool):
-            value = value * factor if factor != 1.0 else value
+        if factor != 1.0:
+            value = parse_number(value, sub) * factor
         kwargs[name] = _check_value(sub, f, value)
     obj = cls(**kwargs)
     validate(obj, path)
@@ -126,18 +165,71 @@ def to_mapping(obj):
     return dataclasses.asdict(obj)
 
 
+class _DuplicateKey(ValueError):
+    pass
+
+
+class _StrictLoader(yaml.SafeLoader):
+    """safe_load that refuses a key given twice in one mapping (PyYAML keeps the last)."""
+
+    def construct_mapping(self, node, deep=False):
+        seen = {}
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=True)
+            try:
+                hash(key)
+            except TypeError:
+                continue      # the base class refuses an unhashable key with its own message
+            if key in seen:
+                raise _DuplicateKey(f"line {key_node.start_mark.line + 1}: key {key!r} given "
+                                    f"twice (first at line {seen[key].line + 1})")
+            seen[key] = key_node.start_mark
+        return super().construct_mapping(node, deep=deep)
+
+
 def load_yaml(path):
-    """Read a YAML file with safe_load; a missing file or a syntax error is a ConfigError."""
+    """
+    Read a YAML file (safe types only); a problem with it is a ConfigError naming the file.
+
+    Refused: a missing or unreadable file, one that is not text, a syntax error, a key given
+    twice in one mapping, and a top level that is not a mapping.  An empty file gives {}.
+    """
     p = Path(path)
     try:
-        text = p.read_text()
+        text = p.read_text(encoding="utf-8")
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read config ({exc.strerror})") from exc
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"{path}: not a text file (not UTF-8 at byte {exc.start})") from exc
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=_StrictLoader)
     except yaml.YAMLError as exc:
         raise ConfigError(f"{path}: not valid YAML ({exc})") from exc
-    return {} if data is None else data
+    except _DuplicateKey as exc:
+        raise ConfigError(f"{path}: {exc}") from exc
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: expected a mapping of keys at top level, got "
+                          f"{type(data).__name__}")
+    return data
+
+
+def load_section(path, key):
+    """
+    Return the mapping under top-level ``key`` of a YAML file, or the whole file without it.
+
+    A section that is not a mapping (``ball_screw: [1]``) is refused, not ignored.
+    """
+    raw = load_yaml(path)
+    if key not in raw:
+        return raw
+    section = raw[key]
+    if section is None:
+        return {}
+    if not isinstance(section, dict):
+        raise ConfigError(f"{path}: {key}: expected a mapping, got {type(section).__name__}")
+    return section
 
 
 @dataclasses.dataclass(frozen=True)
@@ -184,10 +276,7 @@ class LinearBearingConfig:
 
 def load_linear_bearing(path=None, overrides=None):
     """Load a LinearBearingConfig from YAML (key ``linear_bearing``) and/or overrides."""
-    data = {}
-    if path is not None:
-        raw = load_yaml(path)
-        data = dict(raw.get("linear_bearing", raw))
+    data = {} if path is None else dict(load_section(path, "linear_bearing"))
     data.update(overrides or {})
     return from_mapping(LinearBearingConfig, data, "linear_bearing")
 

@@ -14,6 +14,7 @@ ros2_control forward-command convention) and ``/diagnostics``.
 """
 
 import collections
+import dataclasses
 import sys
 import threading
 import time
@@ -32,39 +33,34 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 from bb_friction_ros.config import bundled_config, ConfigError
+from bb_friction_ros.node_parameters import (MODEL_PARAMETERS, NODE_NAME, node_parameters,
+                                             NodeParameters, ros_type, RUNTIME)
 from bb_friction_ros.runner import build_runner, InputAssembler, InputError
 
-NODE_NAME = "friction_node"
 GIL_SWITCH_INTERVAL_S = 2.5e-4
 
 
-def _float_param(lo, hi, doc):
-    return ParameterDescriptor(description=doc, floating_point_range=[
-        FloatingPointRange(from_value=float(lo), to_value=float(hi), step=0.0)])
+def _descriptor(f):
+    """ROS descriptor of a NodeParameters field: its meaning, unit and range."""
+    meta = f.metadata
+    unit = "" if meta["unit"] in (None, "1") else f" [{meta['unit']}]"
+    desc = ParameterDescriptor(description=meta["doc"] + unit)
+    kind = ros_type(f)
+    if kind is float:
+        desc.floating_point_range = [FloatingPointRange(
+            from_value=float(meta["lo"]), to_value=float(meta["hi"]), step=0.0)]
+    elif kind is int:
+        desc.integer_range = [IntegerRange(from_value=int(meta["lo"]), to_value=int(meta["hi"]),
+                                           step=1)]
+    return desc
 
 
-def _int_param(lo, hi, doc):
-    return ParameterDescriptor(description=doc, integer_range=[
-        IntegerRange(from_value=int(lo), to_value=int(hi), step=1)])
+PARAMETERS = {f.name: (f.default, _descriptor(f))     # name: (default, descriptor)
+              for f in dataclasses.fields(NodeParameters)}
 
 
-PARAMETERS = {   # name: (default, descriptor)
-    "config_file": ("", ParameterDescriptor(
-        description="ball-screw YAML (empty: the bundled config/ball_screw.yaml)")),
-    "nut_joint": ("nut_joint", ParameterDescriptor(
-        description="name of the nut joint in nut_state")),
-    "model_rate_hz": (100.0, _float_param(1.0, 2000.0, "whole-screw model steps per second "
-                                          "of input time")),
-    "queue_size": (256, _int_param(1, 100000, "inputs waiting for the model thread; when "
-                                   "full the oldest is dropped (newest wins)")),
-    "groups_rate_hz": (10.0, _float_param(0.1, 1000.0, "contact-group status rate")),
-    "diagnostics_rate_hz": (1.0, _float_param(0.1, 100.0, "diagnostics rate")),
-    "max_axial_load_n": (1.0e5, _float_param(1.0, 1.0e7, "loads above this are rejected "
-                                             "as absurd [N]")),
-    "reliable_qos": (False, ParameterDescriptor(
-        description="inputs with reliable QoS instead of the sensor-data profile")),
-}
-RUNTIME = {"nut_joint", "model_rate_hz", "groups_rate_hz", "max_axial_load_n", "config_file"}
+def _model_file(params):
+    return params.config_file or bundled_config("ball_screw.yaml")
 
 
 class FrictionNode(Node):
@@ -78,16 +74,14 @@ class FrictionNode(Node):
                 self.declare_parameter(name, default, desc)
             except Exception as exc:   # rclpy raises several types for a bad override
                 raise ConfigError(f"{NODE_NAME}.{name}: {exc}") from exc
-        p = {name: self.get_parameter(name).value for name in PARAMETERS}
+        p = node_parameters({name: self.get_parameter(name).value for name in PARAMETERS})
         self._lock = threading.Lock()
         self._wake = threading.Condition(self._lock)
-        self._queue = collections.deque(maxlen=int(p["queue_size"]))
-        self._runner = build_runner(p["config_file"] or bundled_config("ball_screw.yaml"),
-                                    p["model_rate_hz"])
-        self._assembler = InputAssembler(p["nut_joint"], p["max_axial_load_n"])
+        self._queue = collections.deque(maxlen=p.queue_size)
+        self._runner = build_runner(_model_file(p), p.model_rate_hz)
+        self._assembler = InputAssembler(p.nut_joint, p.max_axial_load_n)
+        self._pending = None    # (parameters, runner, names) validated, applied after the set
         self._dropped = 0
-        self._rejected = collections.Counter()
-        self._rejected_states = 0
         self._received = collections.Counter()
         self._published = 0
         self._latest = None
@@ -100,8 +94,8 @@ class FrictionNode(Node):
 
         # Sensor-data semantics (best effort, volatile) with the depth of our own queue: the
         # profile's depth of 5 dropped ~1 % of inputs at 1 kHz while the executor waited.
-        qos = QoSProfile(depth=int(p["queue_size"]), durability=DurabilityPolicy.VOLATILE,
-                         reliability=(ReliabilityPolicy.RELIABLE if p["reliable_qos"]
+        qos = QoSProfile(depth=p.queue_size, durability=DurabilityPolicy.VOLATILE,
+                         reliability=(ReliabilityPolicy.RELIABLE if p.reliable_qos
                                       else ReliabilityPolicy.BEST_EFFORT))
         self._pub_pred = self.create_publisher(FrictionPrediction, "friction/prediction", 10)
         self._pub_groups = self.create_publisher(ContactGroupStatus, "friction/contact_groups",
@@ -112,9 +106,11 @@ class FrictionNode(Node):
         # creation order, and a state must see the load of its own stamp (as replay does).
         self.create_subscription(WrenchStamped, "axial_load", self._on_axial_load, qos)
         self.create_subscription(JointState, "nut_state", self._on_nut_state, qos)
-        self._groups_timer = self.create_timer(1.0 / p["groups_rate_hz"], self._publish_groups)
-        self.create_timer(1.0 / p["diagnostics_rate_hz"], self._publish_diagnostics)
+        self._groups_timer = self.create_timer(1.0 / p.groups_rate_hz, self._publish_groups)
+        self.create_timer(1.0 / p.diagnostics_rate_hz, self._publish_diagnostics)
+        # rclpy's pattern: validate in the on-set callback, apply in the post-set one
         self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.add_post_set_parameters_callback(self._after_set_parameters)
         self._thread = threading.Thread(target=self._model_loop, name="friction_model",
                                         daemon=True)
         self._thread.start()
@@ -129,8 +125,7 @@ class FrictionNode(Node):
                 sample = self._assembler.on_nut_state(stamp, msg.name, msg.position,
                                                       msg.velocity)
             except InputError as err:
-                self._rejected[err.reason] += 1
-                self._rejected_states += 1
+                self._runner.reject(err.reason, nut_state=True)
                 return
             if len(self._queue) == self._queue.maxlen:
                 self._dropped += 1      # deque drops the oldest: the newest input wins
@@ -144,7 +139,7 @@ class FrictionNode(Node):
             try:
                 self._assembler.on_axial_load(msg.wrench.force.z)
             except InputError as err:
-                self._rejected[err.reason] += 1
+                self._runner.reject(err.reason)
 
     # --- model thread ---------------------------------------------------------------------
     def _model_loop(self):
@@ -160,18 +155,17 @@ class FrictionNode(Node):
             # Every input is answered; only the newest may step the model (newest wins).
             for k, (sample, t_recv, stamp) in enumerate(backlog):
                 resets = runner.stats.resets
-                try:
-                    pred = runner.process(sample, allow_step=k == len(backlog) - 1)
-                except Exception as exc:     # one bad step must not kill the node
-                    with self._lock:
-                        self._rejected["model_error"] += 1
-                    self.get_logger().error(f"model step failed: {exc!r}; state reset")
-                    runner.reset()
+                pred = runner.process(sample, allow_step=k == len(backlog) - 1)
+                if pred is None:             # counted by the runner as model_error
+                    self.get_logger().error(f"model step failed: {runner.stats.last_error}; "
+                                            "state reset")
                     continue
                 if runner.stats.resets != resets:
-                    self._reset_note = (f"input stamps went backwards at {sample.stamp_s:.6f}"
-                                        " s: model state reset")
-                    self.get_logger().warning(self._reset_note)
+                    note = (f"input stamps went backwards at {sample.stamp_s:.6f} s: model "
+                            "state reset")
+                    with self._lock:
+                        self._reset_note = note
+                    self.get_logger().warning(note)
                 self._publish_prediction(pred, t_recv, stamp)
 
     def _publish_prediction(self, pred, t_recv, stamp):
@@ -236,10 +230,10 @@ class FrictionNode(Node):
                 "lag_s": 0.0 if latest is None else latest.model_age_s,
                 "received_nut_state": self._received["nut_state"],
                 "received_axial_load": self._received["axial_load"],
-                "rejected_total": sum(self._rejected.values()),
-                "rejected_nut_state": self._rejected_states,
+                "rejected_total": sum(stats.rejected.values()),
+                "rejected_nut_state": stats.rejected_nut_state,
             }
-            for reason, n in sorted(self._rejected.items()):
+            for reason, n in sorted(stats.rejected.items()):
                 values[f"rejected_{reason}"] = n
             converged = latest is None or latest.converged
         return values, converged
@@ -256,8 +250,10 @@ class FrictionNode(Node):
                               f"{values['skipped_inputs']} skipped")
         else:
             status.level, status.message = DiagnosticStatus.OK, "ok"
-        if self._reset_note:
-            status.message += "; " + self._reset_note
+        with self._lock:     # a reset is reported in the one status after it, then cleared
+            note, self._reset_note = self._reset_note, ""
+        if note:
+            status.message += "; " + note
         status.values = [KeyValue(key=k, value=f"{v:.6g}" if isinstance(v, float) else str(v))
                          for k, v in values.items()]
         msg = DiagnosticArray(status=[status])
@@ -266,29 +262,43 @@ class FrictionNode(Node):
 
     # --- parameters -----------------------------------------------------------------------
     def _on_set_parameters(self, params):
+        """Validate a parameter change (types, ranges, the model file); change nothing."""
+        self._pending = None
         for prm in params:
             if prm.name not in RUNTIME:
                 return SetParametersResult(successful=False,
                                            reason=f"{prm.name}: not changeable at runtime")
+        updates = {prm.name: prm.value for prm in params}
+        current = {name: self.get_parameter(name).value for name in PARAMETERS}
         try:
-            updates = {prm.name: prm.value for prm in params}
+            new = node_parameters(updates, node_parameters(current))
             runner = None
-            if "config_file" in updates or "model_rate_hz" in updates:
-                cfg = updates.get("config_file", self.get_parameter("config_file").value)
-                rate = updates.get("model_rate_hz", self.get_parameter("model_rate_hz").value)
-                runner = build_runner(cfg or bundled_config("ball_screw.yaml"), rate)
-        except (ConfigError, ValueError) as exc:
+            if MODEL_PARAMETERS & updates.keys():
+                runner = build_runner(_model_file(new), new.model_rate_hz)
+        except ConfigError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
+        except Exception as exc:     # a model that cannot be built: refused, node lives
+            return SetParametersResult(successful=False,
+                                       reason=f"config_file: cannot build the model ({exc!r})")
+        self._pending = (new, runner, set(updates))
+        return SetParametersResult(successful=True)
+
+    def _after_set_parameters(self, params):
+        """Apply the change validated by _on_set_parameters."""
+        if self._pending is None:
+            return
+        new, runner, changed = self._pending
+        self._pending = None
         with self._lock:
             if runner is not None:
+                # counters go on across the swap: diagnostics stay cumulative and the model
+                # rate window keeps its base (a new runner's zero gave one negative rate)
+                runner.stats = self._runner.stats
                 self._runner = runner
-            if "nut_joint" in updates:
-                self._assembler.nut_joint = updates["nut_joint"]
-            if "max_axial_load_n" in updates:
-                self._assembler.max_axial_load_n = updates["max_axial_load_n"]
-        if "groups_rate_hz" in updates:
-            self._groups_timer.timer_period_ns = int(1e9 / updates["groups_rate_hz"])
-        return SetParametersResult(successful=True)
+            self._assembler.nut_joint = new.nut_joint
+            self._assembler.max_axial_load_n = new.max_axial_load_n
+        if "groups_rate_hz" in changed:
+            self._groups_timer.timer_period_ns = int(1e9 / new.groups_rate_hz)
 
     def destroy_node(self):
         """Stop the model thread, then destroy the node."""

@@ -7,7 +7,6 @@ so the predictions equal the node's for the same messages (tested).  Writes
 """
 
 import csv
-from dataclasses import dataclass
 import json
 from pathlib import Path
 import sys
@@ -16,35 +15,21 @@ import time
 import numpy as np
 
 from bb_friction_ros.bags import measured_torque_at, read_events, Topics
-from bb_friction_ros.config import bundled_config, load_yaml
+from bb_friction_ros.config import bundled_config
+from bb_friction_ros.node_parameters import NodeParameters
 from bb_friction_ros.runner import build_runner, InputAssembler, InputError
 
 CSV_COLUMNS = ["t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n", "torque_pred_nm",
                "torque_b2b_nm"]
 
 
-@dataclass(frozen=True)
-class ReplaySettings:
-    """The node parameters that shape predictions (same names and defaults as the node)."""
-
-    nut_joint: str = "nut_joint"
-    model_rate_hz: float = 100.0
-    max_axial_load_n: float = 1.0e5
-
-    @classmethod
-    def from_params_file(cls, path):
-        """Read ``friction_node: ros__parameters:`` of a ROS params file (others ignored)."""
-        data = load_yaml(path)
-        params = {}
-        for key, section in data.items():
-            if key.lstrip("/").endswith("friction_node") and isinstance(section, dict):
-                params = section.get("ros__parameters", {})
-        names = {"nut_joint", "model_rate_hz", "max_axial_load_n"}
-        return cls(**{k: v for k, v in params.items() if k in names}), params.get("config_file")
-
-
 def run_events(events, runner, assembler, progress=False):
-    """Feed events in order; return (predictions, rejected reasons Counter)."""
+    """
+    Feed events in order; return the predictions.
+
+    Rejected inputs are counted in ``runner.stats`` (``rejected`` by reason), as the node
+    counts them.
+    """
     preds = []
     iterator = events
     if progress:
@@ -57,18 +42,27 @@ def run_events(events, runner, assembler, progress=False):
             elif ev.kind == "nut_state":
                 sample = assembler.on_nut_state(ev.stamp_s, ev.names, ev.positions,
                                                 ev.velocities)
-                preds.append(runner.process(sample))
+                pred = runner.process(sample)
+                if pred is not None:
+                    preds.append(pred)
         except InputError as err:
-            runner.reject(err.reason)
+            runner.reject(err.reason, nut_state=ev.kind == "nut_state")
     return preds
 
 
-def replay(bag, out, config=None, settings=ReplaySettings(), topics=Topics(), progress=True):
-    """Replay ``bag`` into directory ``out``; return the summary dict."""
+def replay(bag, out, config=None, settings=NodeParameters(), topics=Topics(), progress=True):
+    """
+    Replay ``bag`` into directory ``out``; return the summary dict.
+
+    ``settings``: the node's parameters (``nut_joint``, ``model_rate_hz`` and
+    ``max_axial_load_n`` shape the predictions); ``config`` is the model file (default:
+    ``settings.config_file``, else the bundled ``config/ball_screw.yaml``).
+    """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     events, counts = read_events(bag, topics)
-    runner = build_runner(config or bundled_config("ball_screw.yaml"), settings.model_rate_hz)
+    runner = build_runner(config or settings.config_file or bundled_config("ball_screw.yaml"),
+                          settings.model_rate_hz)
     assembler = InputAssembler(settings.nut_joint, settings.max_axial_load_n)
     t0 = time.perf_counter()
     preds = run_events(events, runner, assembler, progress=progress)

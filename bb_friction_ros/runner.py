@@ -21,6 +21,9 @@ import time
 
 import numpy as np
 
+from bb_friction_ros.ball_screw.whole_screw import WholeScrew
+from bb_friction_ros.model_file import load_model_file
+
 
 # Stamps are compared as float seconds: at epoch times (~1.7e9 s) their resolution is ~0.24 us,
 # so five 2 ms intervals may sum to 9.9999998 ms.  Without this slack a 100 Hz model stepped
@@ -113,8 +116,10 @@ class RunnerStats:
     nonconverged_steps: int = 0
     skipped_steps: int = 0
     resets: int = 0
-    rejected: Counter = field(default_factory=Counter)
+    rejected: Counter = field(default_factory=Counter)   # by reason, inputs of both topics
+    rejected_nut_state: int = 0     # nut-state samples never answered (in ``rejected`` too)
     last_step_wall_s: float = 0.0
+    last_error: str = ""            # of the last model step that raised
 
 
 class ModelRunner:
@@ -131,7 +136,7 @@ class ModelRunner:
         """
         Wrap ``screw``; it steps at most once per 1/model_rate_hz of input time.
 
-        ``terms`` (a discrepancy TermSet, optional) adds fitted empirical torque, evaluated
+        ``terms`` (an empirical_terms.TermSet, optional) adds fitted empirical torque, evaluated
         at every sample's own inputs; its time is the stamp since the run's first sample.
         """
         if not model_rate_hz > 0:
@@ -168,9 +173,10 @@ class ModelRunner:
         self.screw.step(0.0, nut_velocity_rad_s, axial_load_n, 0.0)
         self.reset()
 
-    def reject(self, reason):
-        """Count an input rejected before it reached the runner."""
+    def reject(self, reason, nut_state=False):
+        """Count an input rejected before it reached the runner (``nut_state``: a sample)."""
         self.stats.rejected[reason] += 1
+        self.stats.rejected_nut_state += bool(nut_state)
 
     def process(self, sample, allow_step=True):
         """
@@ -179,7 +185,20 @@ class ModelRunner:
         With ``allow_step=False`` (the live node catching up on a backlog: only the newest
         input may step the model) the sample is answered from the current state, and a
         step it would have triggered is counted in ``stats.skipped_steps``.
+
+        A model step that raises must stop neither the node nor replay, and both must then
+        agree: the sample gets no prediction (None), it is counted as rejected
+        ``model_error`` (message in ``stats.last_error``) and the state is reset.
         """
+        try:
+            return self._process(sample, allow_step)
+        except Exception as exc:   # any failure of the physics: counted, never fatal
+            self.reject("model_error", nut_state=True)
+            self.stats.last_error = repr(exc)
+            self.reset()
+            return None
+
+    def _process(self, sample, allow_step):
         if self._last_stamp is not None and sample.stamp_s < self._last_stamp:
             # A bag loop or a restarted source: the balls' history no longer applies.
             self.stats.resets += 1
@@ -262,21 +281,13 @@ class InputAssembler:
 
 def build_runner(config_path, model_rate_hz):
     """
-    Build a ModelRunner around the whole-screw model of a ball-screw YAML config.
+    Build a ModelRunner around the whole-screw model of a model file.
 
-    A top-level ``empirical_terms`` list in the same file (``augmented.yaml`` of the
-    discrepancy workflow) adds its fitted terms to every prediction.
+    Its ``empirical_terms`` (``augmented.yaml`` of the discrepancy workflow) add their fitted
+    torque to every prediction.
     """
-    from bb_friction_ros.ball_screw.parameters import load_ball_screw
-    from bb_friction_ros.ball_screw.whole_screw import WholeScrew
-    from bb_friction_ros.config import load_yaml
-    terms = None
-    raw = load_yaml(config_path)
-    if isinstance(raw, dict) and raw.get("empirical_terms"):
-        from bb_friction_ros.discrepancy.terms import load_terms
-        terms = load_terms(raw["empirical_terms"])
-    cfg = load_ball_screw(config_path)
-    runner = ModelRunner(WholeScrew(cfg), model_rate_hz, terms)
+    cfg, terms = load_model_file(config_path)
+    runner = ModelRunner(WholeScrew(cfg), model_rate_hz, terms if len(terms) else None)
     runner.warm_up(cfg.operation.axial_load_n, cfg.operation.nut_speed_rad_s)
     return runner
 

@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 from bb_friction_ros.ball_screw.module import solve_two_ball_module
-from bb_friction_ros.ball_screw.parameters import load_ball_screw
+from bb_friction_ros.model_file import load_ball_screw
 from bb_friction_ros.ball_screw.screw_model import ScrewModel
 from bb_friction_ros.ball_screw.whole_screw import WholeScrew
 

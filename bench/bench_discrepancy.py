@@ -43,7 +43,7 @@ from bb_friction_ros.discrepancy.settings import DiscrepancySettings
 from bb_friction_ros.discrepancy.synthetic import (baseline, named_correctly, NOISE_RANGE_NM,
                                                    random_case, reference_trajectory,
                                                    synthesize)
-from bb_friction_ros.discrepancy.terms import TermSet
+from bb_friction_ros.empirical_terms import TermSet
 from bb_friction_ros.discrepancy.workflow import analyse
 
 REDUCIBLE_SHARE = 0.8

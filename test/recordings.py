@@ -1,6 +1,6 @@
 """Small generated recordings shared by the replay and node tests."""
 
-from bb_friction_ros.demo import DemoRecording, make_demo_events
+from bb_friction_ros.trajectories import DemoRecording, make_demo_events
 
 
 def short_recording(state_rate_hz=100.0, segment_s=0.25, measured=None):

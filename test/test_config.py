@@ -1,10 +1,11 @@
 """Validated configuration: units at the edges, refusal naming the key and the reason."""
 
 import math
+import re
 
 import pytest
 
-from bb_friction_ros.config import ConfigError, load_linear_bearing
+from bb_friction_ros.config import ConfigError, load_linear_bearing, parse_number, si_key
 
 
 def test_defaults_are_table1():
@@ -48,3 +49,66 @@ def test_bundled_config_is_table1(repo_root):
     """config/linear_bearing.yaml loads (YAML 1.1 '2.1e11' included) and equals the defaults."""
     assert load_linear_bearing(repo_root / "config" / "linear_bearing.yaml") == \
         load_linear_bearing()
+
+
+@pytest.mark.parametrize("text,needle", [
+    # issue 13 finding 19: badly shaped files are refused by name, never a traceback
+    ("- 1\n- 2\n", "expected a mapping of keys at top level, got list"),
+    ("just a string\n", "expected a mapping of keys at top level, got str"),
+    ("1: 2\n", "linear_bearing: key 1 is not a name"),
+    ("linear_bearing:\n  1: 2\n", "linear_bearing: key 1 is not a name"),
+    ("linear_bearing: [1]\n", "linear_bearing: expected a mapping, got list"),
+    ("linear_bearing: abc\n", "linear_bearing: expected a mapping, got str"),
+    ("linear_bearing:\n  map_nodes: 4096.5\n", "linear_bearing.map_nodes: must be an integer"),
+    ("linear_bearing:\n  ball_radius_m: [1]\n", "ball_radius_m: expected a number"),
+    ("linear_bearing:\n  conformity: 0.55\n  conformity: 0.6\n",
+     "line 3: key 'conformity' given twice (first at line 2)"),
+    ("linear_bearing:\n  conformity: 0.55\nlinear_bearing:\n  conformity: 0.6\n",
+     "line 3: key 'linear_bearing' given twice"),
+])
+def test_badly_shaped_config_is_refused_by_name(tmp_path, text, needle):
+    p = tmp_path / "bad.yaml"
+    p.write_text(text)
+    with pytest.raises(ConfigError, match=re.escape(needle)):
+        load_linear_bearing(p)
+
+
+def test_binary_config_is_refused(tmp_path):
+    p = tmp_path / "bad.yaml"
+    p.write_bytes(bytes(range(256)))
+    with pytest.raises(ConfigError, match="not a text file"):
+        load_linear_bearing(p)
+
+
+def test_integral_float_is_an_integer_field(tmp_path):
+    """``map_nodes: 4096.0`` (or YAML 1.1's ``4.096e3`` string) is the integer 4096."""
+    p = tmp_path / "lb.yaml"
+    p.write_text("linear_bearing:\n  map_nodes: 4.096e3\n")
+    value = load_linear_bearing(p).map_nodes
+    assert value == 4096 and isinstance(value, int)
+
+
+@pytest.mark.parametrize("key,text,si", [
+    # issue 13 finding 7: YAML 1.1 reads 1e1 as a string; parse it, then convert the unit
+    ("groove_velocity_m_s", "groove_velocity_mm_s: 1e1", 10e-3),
+    ("nominal_contact_angle_rad", "nominal_contact_angle_deg: 4e1", math.radians(40.0)),
+    ("ball_radius_m", "ball_radius_mm: 5e0", 5e-3),
+    ("youngs_modulus_pa", "youngs_modulus_pa: 2.1e11", 2.1e11),
+])
+def test_exponent_strings_get_the_unit_factor(tmp_path, key, text, si):
+    p = tmp_path / "lb.yaml"
+    p.write_text(f"linear_bearing:\n  {text}\n")
+    assert getattr(load_linear_bearing(p), key) == pytest.approx(si, rel=1e-12)
+
+
+def test_one_edge_unit_parser():
+    """si_key resolves the edge units for config fields and dotted sweep parameters alike."""
+    assert si_key("theta_deg", {"theta_rad"}) == ("theta_rad", pytest.approx(math.pi / 180))
+    assert si_key("errors.x_um", {"errors.x_m"}) == ("errors.x_m", 1e-6)
+    assert si_key("v_mm_s", {"v_m_s", "v_m"}) == ("v_m_s", 1e-3)
+    assert si_key("v_m_s", {"v_m_s"}) == ("v_m_s", 1.0)
+    assert si_key("colour", {"theta_rad"}) is None
+    assert parse_number("1e1", "k") == 10.0
+    for bad in (True, "fast", None, [1]):
+        with pytest.raises(ConfigError, match="k: expected a number"):
+            parse_number(bad, "k")

@@ -5,6 +5,7 @@ Inputs are paced so that the model keeps up; then the node must give exactly the
 predictions (same runner, same schedule).
 """
 
+import dataclasses
 import math
 
 import pytest
@@ -13,14 +14,15 @@ from rclpy.parameter import Parameter
 from bb_friction_ros.bags import Event
 from bb_friction_ros.config import bundled_config, ConfigError
 from bb_friction_ros.node import FrictionNode, main, play_through_node
-from bb_friction_ros.replay import ReplaySettings, run_events
+from bb_friction_ros.node_parameters import NodeParameters
+from bb_friction_ros.replay import run_events
 from bb_friction_ros.runner import build_runner, InputAssembler
 from recordings import short_recording
 
 
 def replay_predictions(events):
-    runner = build_runner(bundled_config("ball_screw.yaml"), ReplaySettings().model_rate_hz)
-    asm = InputAssembler(ReplaySettings().nut_joint, ReplaySettings().max_axial_load_n)
+    runner = build_runner(bundled_config("ball_screw.yaml"), NodeParameters().model_rate_hz)
+    asm = InputAssembler(NodeParameters().nut_joint, NodeParameters().max_axial_load_n)
     return run_events(events, runner, asm), runner
 
 
@@ -175,3 +177,91 @@ def test_console_script_with_bundled_params_file(ros_context, repo_root):
         proc.wait(timeout=10)
         ex.shutdown()
         io.destroy_node()
+
+
+BAD_MODEL_FILES = {   # issue 13 findings 1 and 19: each killed the node or gave a traceback
+    "int_key.yaml": ("1: 2\n", "ball_screw: key 1 is not a name"),
+    "float_balls.yaml": ("ball_screw:\n  track: {n_balls: 37.7}\n",
+                         "ball_screw.track.n_balls: must be an integer"),
+    "list_section.yaml": ("ball_screw: [1]\n", "ball_screw: expected a mapping, got list"),
+    "top_list.yaml": ("- 1\n", "expected a mapping of keys at top level, got list"),
+    "duplicate.yaml": ("ball_screw:\n  track: {n_balls: 30}\n  track: {n_balls: 31}\n",
+                       "key 'track' given twice"),
+    "binary.yaml": (bytes(range(256)), "not a text file"),
+}
+
+
+def _write(path, content):
+    if isinstance(content, bytes):
+        path.write_bytes(content)
+    else:
+        path.write_text(content)
+    return path
+
+
+def test_bad_config_file_at_runtime_is_refused_and_the_node_lives(ros_context, tmp_path):
+    node = FrictionNode(context=ros_context)
+    try:
+        runner = node._runner
+        for name, (content, needle) in BAD_MODEL_FILES.items():
+            path = _write(tmp_path / name, content)
+            res = node.set_parameters([Parameter("config_file", value=str(path))])[0]
+            assert not res.successful and needle in res.reason, (name, res.reason)
+            assert node.get_parameter("config_file").value == ""
+            assert node._runner is runner         # nothing applied
+        good = _write(tmp_path / "good.yaml", "ball_screw:\n  track: {n_balls: 30}\n")
+        assert node.set_parameters([Parameter("config_file", value=str(good))])[0].successful
+        assert node._runner is not runner         # applied after validation
+    finally:
+        node.destroy_node()
+
+
+@pytest.mark.parametrize("name", sorted(BAD_MODEL_FILES))
+def test_bad_config_file_at_start_up_is_a_clean_refusal(tmp_path, capsys, name):
+    content, needle = BAD_MODEL_FILES[name]
+    path = _write(tmp_path / name, content)
+    params = tmp_path / "params.yaml"
+    params.write_text(f"friction_node:\n  ros__parameters:\n    config_file: '{path}'\n")
+    assert main(["friction_node", "--ros-args", "--params-file", str(params)]) == 2
+    err = capsys.readouterr().err
+    assert needle in err and "Traceback" not in err
+
+
+def test_node_refuses_what_replay_refuses(ros_context):
+    """The node's descriptors come from NodeParameters: same defaults, same refusals."""
+    from test_node_parameters import BAD_VALUES
+    from bb_friction_ros.node import PARAMETERS
+    assert {k: d for k, (d, _) in PARAMETERS.items()} == dataclasses.asdict(NodeParameters())
+    for name, value, _ in BAD_VALUES:
+        with pytest.raises(ConfigError, match=name):
+            FrictionNode(context=ros_context, parameter_overrides=[Parameter(name, value=value)])
+
+
+def test_model_rate_is_not_negative_after_a_runtime_rebuild(ros_context):
+    """Issue 14: the rate window kept the old runner's step count, giving one negative rate."""
+    from bb_friction_ros.runner import InputSample
+    node = FrictionNode(context=ros_context)
+    try:
+        for k in range(20):
+            node._runner.process(InputSample(0.01 * k, 0.06 * k, 6.0, 1500.0))
+        node.diagnostics_values()              # the rate window starts with 20 steps
+        assert node.set_parameters([Parameter("model_rate_hz", value=50.0)])[0].successful
+        values, _ = node.diagnostics_values()
+        assert values["model_rate_hz"] >= 0.0 and values["model_steps"] == 20
+    finally:
+        node.destroy_node()
+
+
+def test_reset_note_is_reported_once(ros_context):
+    """The diagnostics status names a reset in the one status after it, then clears."""
+    j = ("nut_joint",)
+    events = [Event("axial_load", 0.0, value=1500.0)]
+    events += [Event("nut_state", 0.01 * k, j, (0.06 * k,), (6.0,)) for k in range(1, 20)]
+    events += [Event("nut_state", 0.005 + 0.01 * k, j, (0.06 * k,), (6.0,))     # loop
+               for k in range(60)]
+    _, _, diag, diags = play_through_node(events, {"diagnostics_rate_hz": 20.0},
+                                          context=ros_context, speed=1.0)
+    messages = [s.message for d in diags for s in d.status]
+    noted = [k for k, m in enumerate(messages) if "went backwards" in m]
+    assert diag["resets"] == 1 and len(noted) == 1
+    assert noted[0] < len(messages) - 1       # later statuses no longer carry it

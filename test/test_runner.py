@@ -90,3 +90,37 @@ def test_model_rate_holds_at_epoch_stamps():
     stepped = [runner.process(InputSample(t0 + k / 500.0, 0.0, 1.0, 100.0)).stepped
                for k in range(501)]
     assert sum(stepped) == 101
+
+
+class FailingScrew(RecordingScrew):
+    """Raises on the step at ``bad_angle``: a physics failure the runner must survive."""
+
+    def __init__(self, bad_angle):
+        super().__init__()
+        self.bad_angle = bad_angle
+
+    def step(self, nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s):
+        if nut_angle_rad == self.bad_angle:
+            raise FloatingPointError("solver blew up")
+        return super().step(nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s)
+
+
+def test_model_error_is_counted_and_resets_in_the_shared_runner():
+    """
+    A raising step: no prediction, counted ``model_error``, state reset; the next sample goes on.
+
+    The runner does it, so the node and replay (``run_events``) behave the same (issue 14).
+    """
+    from bb_friction_ros.bags import Event
+    from bb_friction_ros.replay import run_events
+    events = [Event("axial_load", 0.0, value=100.0)] + [
+        Event("nut_state", t, ("nut_joint",), (t,), (1.0,)) for t in (0.0, 0.01, 0.02, 0.03)]
+    screw = FailingScrew(bad_angle=0.02)
+    runner = ModelRunner(screw, model_rate_hz=100.0)
+    preds = run_events(events, runner, InputAssembler("nut_joint", 1e5))
+    assert [p.stamp_s for p in preds] == [0.0, 0.01, 0.03]
+    assert runner.stats.rejected == {"model_error": 1}
+    assert runner.stats.rejected_nut_state == 1
+    assert "solver blew up" in runner.stats.last_error
+    assert screw.calls[-2] == ("reset", 0.03)      # a new run starts after the failure
+    assert preds[-1].stepped and preds[-1].model_age_s == 0.0

@@ -17,7 +17,7 @@ DEFAULT_CONFIG = None    # built-in defaults equal config/ball_screw.yaml
 
 def _load(args, overrides=None):
     """Load the ball screw config named by ``--config`` with command-line overrides."""
-    from bb_friction_ros.ball_screw.parameters import load_ball_screw
+    from bb_friction_ros.model_file import load_ball_screw
     return load_ball_screw(args.config, overrides)
 
 

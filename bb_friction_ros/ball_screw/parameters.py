@@ -2,13 +2,14 @@
 Validated configuration of the ball screw model (paper Sec. 3, Table 4; issue #4).
 
 Every physical value is a named field with its unit and admissible range.  SI inside; the YAML
-file may use the edge units ``*_deg``, ``*_mm``, ``*_um`` (converted by ``from_mapping``).
+file may use the edge units ``*_deg``, ``*_mm``, ``*_um`` (converted by ``config.from_mapping``).
+``model_file.load_ball_screw`` reads it from a file.
 """
 
 import dataclasses
 import math
 
-from bb_friction_ros.config import ConfigError, field, from_mapping, load_yaml
+from bb_friction_ros.config import ConfigError, field
 
 _DEG = math.pi / 180.0
 
@@ -156,26 +157,3 @@ class BallScrewConfig:
     track: NutTrack = dataclasses.field(default_factory=NutTrack)
     operation: Operation = dataclasses.field(default_factory=Operation)
     solver: SolverSettings = dataclasses.field(default_factory=SolverSettings)
-
-
-def _merge(base, extra):
-    """Recursively merge mapping ``extra`` into a copy of ``base``."""
-    out = dict(base)
-    for key, value in (extra or {}).items():
-        if isinstance(value, dict) and isinstance(out.get(key), dict):
-            out[key] = _merge(out[key], value)
-        else:
-            out[key] = value
-    return out
-
-
-def load_ball_screw(path=None, overrides=None):
-    """Load a BallScrewConfig from YAML (key ``ball_screw``) and/or nested dict overrides."""
-    data = {}
-    if path is not None:
-        raw = load_yaml(path)
-        if not isinstance(raw, dict):
-            raise ConfigError(f"{path}: expected a mapping at top level")
-        data = raw.get("ball_screw", raw)
-    data = _merge(data if isinstance(data, dict) else {}, overrides)
-    return from_mapping(BallScrewConfig, data, "ball_screw")

@@ -11,7 +11,7 @@ import math
 from pathlib import Path
 
 from bb_friction_ros.ball_screw.module import solve_two_ball_module
-from bb_friction_ros.ball_screw.parameters import load_ball_screw
+from bb_friction_ros.ball_screw.parameters import BallScrewConfig
 from bb_friction_ros.ball_screw.screw_model import ScrewModel
 from bb_friction_ros.ball_screw.simulation import run_whole_screw, summarize, write_outputs
 
@@ -33,7 +33,7 @@ def _row(quantity, paper, ours, unit, note="", relative=True):
 
 def reproduce_ball_screw(out_dir, config=None, n_steps=None):
     """Table 5 and Sec. 3.4 rows plus Figs. 20-21 PNGs in ``out_dir``."""
-    cfg = load_ball_screw() if config is None else config
+    cfg = BallScrewConfig() if config is None else config
     model = ScrewModel(cfg)
     op = cfg.operation
     w = op.module_axial_load_n

@@ -9,10 +9,8 @@ or settings file raises ConfigError, which the main CLI prints with status 2.
 """
 
 import json
-import math
 import sys
 
-from bb_friction_ros.config import ConfigError
 from bb_friction_ros.discrepancy.data import BASELINES
 
 
@@ -56,11 +54,9 @@ def run_discrepancy_command(args):
     from bb_friction_ros.discrepancy.data import InputProblem
     from bb_friction_ros.discrepancy.settings import load_settings
     from bb_friction_ros.discrepancy.workflow import run_discrepancy
-    from bb_friction_ros.replay import ReplaySettings
-    if not (math.isfinite(args.model_rate_hz) and args.model_rate_hz > 0):
-        raise ConfigError(f"--model-rate-hz: must be > 0, got {args.model_rate_hz}")
+    from bb_friction_ros.node_parameters import NodeParameters
     settings = load_settings(args.settings)
-    replay_settings = ReplaySettings(nut_joint=args.nut_joint,
+    replay_settings = NodeParameters(nut_joint=args.nut_joint,
                                      model_rate_hz=args.model_rate_hz)
     try:
         status, summary = run_discrepancy(

@@ -4,16 +4,16 @@ A recording with measured and predicted torque, from a rosbag2 or a CSV file.
 The prediction always comes from the replay path (``replay.run_events``: the live node's
 ``InputAssembler`` and ``ModelRunner``), so the residual is what the node would show.
 
-CSV input: a header row and one row per nut-state sample with the columns ``t_s,
-nut_angle_rad, nut_velocity_rad_s, axial_load_n, torque_meas_nm`` (SI; other columns are
-ignored; an optional ``nut_accel_rad_s2`` overrides the acceleration the workflow derives).
-The file may start with a UTF-8 byte-order mark.  Its rows must be in time order; a file of
-several runs (the stamps restart, as in a looped bag's ``prediction.csv``) is read as
-consecutive runs when each run has at least ``MIN_RUN_ROWS`` rows, and a file whose time
-goes backwards more often (shuffled or reversed rows) is refused.  ``bb-friction replay``'s own ``prediction.csv`` qualifies when it has
-``torque_meas_nm``; its ``torque_pred_nm`` is then reused as the prediction (it came out of
-the same model path), unless ``recompute`` is set.  Rows with a non-finite measured torque
-are kept for the model (continuity of the ball state) but not analysed.
+CSV input: a header row and one row per nut-state sample with the columns ``t_s, nut_angle_rad,
+nut_velocity_rad_s, axial_load_n, torque_meas_nm`` (SI; other columns are ignored; an optional
+``nut_accel_rad_s2`` overrides the acceleration the workflow derives). The file may start with
+a UTF-8 byte-order mark. Its rows must be in time order; a file of several runs (the stamps
+restart, as in a looped bag's ``prediction.csv``) is read as consecutive runs when each run has
+at least ``MIN_RUN_ROWS`` rows, and a file whose time goes backwards more often (shuffled or
+reversed rows) is refused. ``bb-friction replay``'s own ``prediction.csv`` qualifies when it
+has ``torque_meas_nm``; its ``torque_pred_nm`` is then reused as the prediction (it came out of
+the same model path), unless ``recompute`` is set. Rows with a non-finite measured torque are
+kept for the model (continuity of the ball state) but not analysed.
 """
 
 import csv
@@ -24,9 +24,11 @@ from typing import Optional
 import numpy as np
 
 from bb_friction_ros.bags import Event, measured_torque_at, read_events, Topics
-from bb_friction_ros.config import bundled_config, ConfigError, load_yaml
-from bb_friction_ros.discrepancy.terms import load_terms
-from bb_friction_ros.replay import ReplaySettings, run_events
+from bb_friction_ros.config import bundled_config, ConfigError
+from bb_friction_ros.empirical_terms import Inputs
+from bb_friction_ros.model_file import load_model_file
+from bb_friction_ros.node_parameters import NodeParameters
+from bb_friction_ros.replay import run_events
 from bb_friction_ros.runner import build_runner, InputAssembler
 
 CSV_REQUIRED = ("t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n",
@@ -83,20 +85,12 @@ def run_times(stamps_s):
     return stamps - first
 
 
-def base_terms(config_path):
-    """Return the TermSet already in a config's ``empirical_terms`` (empty when none)."""
-    raw = load_yaml(config_path)
-    return load_terms(raw.get("empirical_terms") if isinstance(raw, dict) else None)
-
-
-def runner_applies_terms():
-    """
-    Tell whether the runner's Prediction carries an empirical part of its own.
-
-    Until it does, the workflow adds a base config's ``empirical_terms`` itself.
-    """
-    from bb_friction_ros.runner import Prediction
-    return any("empirical" in f.name for f in dataclasses.fields(Prediction))
+def inputs_of(rec, mask=None):
+    """Return the empirical_terms.Inputs of a recording (or of the samples in ``mask``)."""
+    sel = slice(None) if mask is None else mask
+    accel = None if rec.nut_accel_rad_s2 is None else rec.nut_accel_rad_s2[sel]
+    return Inputs.of(rec.t_run_s[sel], rec.nut_angle_rad[sel], rec.nut_velocity_rad_s[sel],
+                     rec.axial_load_n[sel], accel)
 
 
 def predict_events(events, config_path, replay_settings, progress=False):
@@ -114,11 +108,7 @@ def _from_predictions(preds, measured_nm, config_path, info):
     speed = np.array([p.nut_velocity_rad_s for p in preds], dtype=float)
     load = np.array([p.axial_load_n for p in preds], dtype=float)
     pred = np.array([p.torque_total_nm for p in preds], dtype=float)
-    terms = base_terms(config_path)
-    if len(terms) and not runner_applies_terms():
-        pred = pred + terms.torque_nm(t_run, angle, speed, load)
-        info["base_terms_added_by"] = "discrepancy workflow (runner does not apply them)"
-    info["base_terms"] = list(terms.names)
+    info["base_terms"] = list(load_model_file(config_path)[1].names)   # in pred already
     return Recording(t, t_run, angle, speed, load, np.asarray(measured_nm, dtype=float), pred,
                      np.array([p.converged for p in preds], dtype=bool), info)
 
@@ -140,7 +130,7 @@ def zero_baseline_events(events, replay_settings):
     return samples, rejected
 
 
-def load_bag(path, config_path, replay_settings=ReplaySettings(), topics=Topics(),
+def load_bag(path, config_path, replay_settings=NodeParameters(), topics=Topics(),
              progress=False, baseline="model"):
     """Read a rosbag2, predict through the replay path, align the measured torque."""
     try:
@@ -245,7 +235,7 @@ def csv_events(cols, nut_joint):
     return events
 
 
-def load_csv(path, config_path, replay_settings=ReplaySettings(), recompute=False,
+def load_csv(path, config_path, replay_settings=NodeParameters(), recompute=False,
              progress=False, baseline="model"):
     """Read a CSV recording; reuse its ``torque_pred_nm`` unless ``recompute`` (see module)."""
     cols = _read_csv_columns(path)
@@ -290,7 +280,7 @@ def load_csv(path, config_path, replay_settings=ReplaySettings(), recompute=Fals
     return rec
 
 
-def load_recording(path, config_path=None, replay_settings=ReplaySettings(), topics=Topics(),
+def load_recording(path, config_path=None, replay_settings=NodeParameters(), topics=Topics(),
                    recompute=False, progress=False, baseline="model"):
     """Load a rosbag2 directory or a ``.csv`` file (see module docstring)."""
     path = Path(path)

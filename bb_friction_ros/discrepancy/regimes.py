@@ -161,7 +161,7 @@ def _value(variable, x):
 
 
 def mask_of(b, x, standstill_rad_s):
-    """Return the boolean mask of bin ``b`` over inputs ``x`` (a terms.Inputs)."""
+    """Return the boolean mask of bin ``b`` over inputs ``x`` (an empirical_terms.Inputs)."""
     v = _value(b.variable, x)
     m = (v >= b.lo) & (v < b.hi)
     if b.direction:

@@ -11,7 +11,8 @@ import math
 
 import numpy as np
 
-from bb_friction_ros.discrepancy.terms import LIBRARY
+from bb_friction_ros.discrepancy.data import inputs_of
+from bb_friction_ros.empirical_terms import LIBRARY
 
 # Points per scatter panel: beyond a few thousand a scatter shows no more and costs seconds
 # per figure (a 25,000-sample recording); an even stride keeps every regime.
@@ -204,7 +205,6 @@ def plot_all(out, a):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from bb_friction_ros.discrepancy.workflow import inputs_of
     x = inputs_of(a.recording)
     fig, axes = plt.subplots(2, 3, figsize=(15, 7))
     _panels(axes.ravel(), x, [a.residual_nm], ["residual (measured - predicted)"], ["0.5"],

@@ -23,7 +23,8 @@ import math
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from bb_friction_ros.discrepancy.terms import AMBIGUOUS_PAIRS, Inputs, LIBRARY, make_term, TermSet
+from bb_friction_ros.empirical_terms import (AMBIGUOUS_PAIRS, Inputs, LIBRARY, make_term,
+                                             TermSet)
 
 # Tolerance of the 1-D refinement of a nonlinear parameter, in ln units: 1e-3 is 0.1 %,
 # far below what a noisy recording can resolve.
@@ -87,9 +88,9 @@ def candidates(x, settings, skip=(), fixed=None):
         elif name == "stroke_position":
             lo, hi = float(np.min(x.nut_angle_rad)), float(np.max(x.nut_angle_rad))
             linear = tuple(f"p{k}_nm" for k in range(1, settings.stroke_order + 1))
+            half_range = max(0.5 * (hi - lo), 1e-9)
             out.append(Candidate(name, linear, fixed=(
-                ("center_rad", 0.5 * (lo + hi)), ("half_range_rad", max(0.5 * (hi - lo),
-                                                                         1e-9)))))
+                ("center_rad", 0.5 * (lo + hi)), ("half_range_rad", half_range))))
         elif name == "inertia":
             if x.nut_accel_rad_s2 is None or name not in fixed:
                 continue
@@ -183,8 +184,9 @@ def _solve(g, b):
 
 class Gram:
     """
-    The cross-products of every candidate column (each grid value) and the residual, per
-    cross-validation block, accumulated over row chunks.
+    Cross-products of every candidate column and the residual, per cross-validation block.
+
+    They are accumulated over row chunks, for each grid value of a nonlinear parameter.
 
     Every subset's least-squares fit and blocked cross-validation then costs a few small
     solves, independent of the number of samples; the columns are never all in memory at
@@ -376,7 +378,7 @@ def best_grid_fit(subset, gram, tau):
 
 def select(x, r, settings, skip=(), fixed=None, tau=1.0):
     """
-    Select terms explaining residual ``r`` at fit inputs ``x`` (a terms.Inputs).
+    Select terms explaining residual ``r`` at fit inputs ``x`` (an empirical_terms.Inputs).
 
     Best-subset selection: for each size m <= max_terms the subset of lowest BIC (its
     nonlinear values from the grid; the best ``REFINED_PER_SIZE`` per size then refined);

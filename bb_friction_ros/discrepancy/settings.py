@@ -7,9 +7,9 @@ out-of-range value is refused with the dotted key, like every other config of th
 
 import dataclasses
 
-from bb_friction_ros.config import field, from_mapping, load_yaml
-from bb_friction_ros.discrepancy.terms import (MAX_LEAD_HARMONICS, MAX_RIPPLE_HARMONICS,
-                                               MAX_STROKE_ORDER)
+from bb_friction_ros.config import field, from_mapping, load_section
+from bb_friction_ros.empirical_terms import (MAX_LEAD_HARMONICS, MAX_RIPPLE_HARMONICS,
+                                             MAX_STROKE_ORDER)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -122,8 +122,5 @@ class DiscrepancySettings:
 
 def load_settings(path=None):
     """Read ``discrepancy:`` settings from YAML (defaults when ``path`` is None)."""
-    data = {}
-    if path is not None:
-        raw = load_yaml(path)
-        data = raw.get("discrepancy", raw) if isinstance(raw, dict) else raw
+    data = {} if path is None else load_section(path, "discrepancy")
     return from_mapping(DiscrepancySettings, data, "discrepancy")

@@ -20,10 +20,10 @@ from pathlib import Path
 import numpy as np
 
 from bb_friction_ros.config import bundled_config
-from bb_friction_ros.demo import DemoRecording, make_demo_events
+from bb_friction_ros.trajectories import DemoRecording, make_demo_events
 from bb_friction_ros.discrepancy.data import predict_events, Recording, run_times
-from bb_friction_ros.discrepancy.terms import make_term, TermSet
-from bb_friction_ros.replay import ReplaySettings
+from bb_friction_ros.empirical_terms import make_term, TermSet
+from bb_friction_ros.node_parameters import NodeParameters
 
 # One cycle of nut speeds [rev/s]: slow (Stribeck region), fast, medium, fastest.
 CYCLE_REV_S = (0.05, -0.05, 1.0, -1.0, 0.25, -0.25, 2.0, -2.0)
@@ -66,7 +66,8 @@ def _cache_key(cfg, config_path, model_rate_hz):
     h.update(Path(config_path).read_bytes())
     h.update(repr(float(model_rate_hz)).encode())
     root = Path(__file__).resolve().parent.parent
-    for pattern in ("ball_screw/*.py", "contact/*.py", "runner.py", "replay.py", "demo.py"):
+    for pattern in ("ball_screw/*.py", "contact/*.py", "runner.py", "replay.py",
+                    "trajectories.py"):
         for p in sorted(root.glob(pattern)):
             h.update(p.read_bytes())
     return h.hexdigest()[:20]
@@ -83,7 +84,7 @@ class Baseline:
 def baseline(cfg, config_path=None, model_rate_hz=100.0, cache_dir=None):
     """Return the Baseline of trajectory ``cfg``: computed once, then read from the cache."""
     config_path = config_path or bundled_config("ball_screw.yaml")
-    settings = ReplaySettings(nut_joint=cfg.nut_joint, model_rate_hz=model_rate_hz)
+    settings = NodeParameters(nut_joint=cfg.nut_joint, model_rate_hz=float(model_rate_hz))
     cache = None
     if cache_dir is not None:
         cache = Path(cache_dir) / f"baseline_{_cache_key(cfg, config_path, model_rate_hz)}.npz"

@@ -26,9 +26,10 @@ import math
 import numpy as np
 
 from bb_friction_ros.discrepancy import regimes
+from bb_friction_ros.discrepancy.data import inputs_of
 from bb_friction_ros.discrepancy.selection import ambiguities, candidates, select
-from bb_friction_ros.discrepancy.terms import (filter_lag_s, Inputs, TermSet,
-                                               zero_phase_acceleration)
+from bb_friction_ros.empirical_terms import filter_lag_s, TermSet, zero_phase_acceleration
+from bb_friction_ros.model_file import read_model_file, write_model_file
 
 
 class InsufficientData(ValueError):
@@ -38,14 +39,6 @@ class InsufficientData(ValueError):
         """Keep the list of what is missing."""
         super().__init__("; ".join(missing))
         self.missing = list(missing)
-
-
-def inputs_of(rec, mask=None):
-    """Return the terms.Inputs of a recording (optionally of the samples in ``mask``)."""
-    sel = slice(None) if mask is None else mask
-    accel = None if rec.nut_accel_rad_s2 is None else rec.nut_accel_rad_s2[sel]
-    return Inputs.of(rec.t_run_s[sel], rec.nut_angle_rad[sel], rec.nut_velocity_rad_s[sel],
-                     rec.axial_load_n[sel], accel)
 
 
 def acceleration_filter_of(rec, settings):
@@ -383,22 +376,14 @@ def write_augmented(path, config_path, terms, zero_baseline=False):
 
     Terms already in the base config are kept (the new ones were fitted on top of them).
     """
-    import yaml
-    from bb_friction_ros.config import load_yaml
-    from bb_friction_ros.discrepancy.terms import load_terms
-    raw = load_yaml(config_path)
-    base = raw.get("ball_screw", {k: v for k, v in raw.items() if k != "empirical_terms"})
-    existing = load_terms(raw.get("empirical_terms")).to_list()
-    doc = {"ball_screw": base, "empirical_terms": existing + terms.to_list()}
+    base, existing = read_model_file(config_path)
     note = ""
     if zero_baseline:
         note = ("# --baseline zero: the terms were fitted to the measured torque alone (no model\n"
                 "# of this screw); they are the whole torque, the ball_screw part is only the\n"
                 "# base config the runner needs.\n")
-    text = AUGMENTED_HEADER + note + f"# base config: {config_path}\n" + yaml.safe_dump(
-        doc, sort_keys=False, default_flow_style=False)
-    path.write_text(text)
-    return path
+    return write_model_file(path, base, TermSet(existing.terms + terms.terms),
+                            AUGMENTED_HEADER + note + f"# base config: {config_path}\n")
 
 
 @dataclasses.dataclass
@@ -474,10 +459,10 @@ def run_discrepancy(input_path, out, config=None, settings=None, replay_settings
     from bb_friction_ros.discrepancy.data import load_recording
     from bb_friction_ros.discrepancy.report import write_report, write_insufficient_report
     from bb_friction_ros.discrepancy.settings import DiscrepancySettings
-    from bb_friction_ros.replay import ReplaySettings
+    from bb_friction_ros.node_parameters import NodeParameters
     settings = settings or DiscrepancySettings()
     config = Path(config) if config else bundled_config("ball_screw.yaml")
-    load = dict(replay_settings=replay_settings or ReplaySettings(), topics=topics or Topics(),
+    load = dict(replay_settings=replay_settings or NodeParameters(), topics=topics or Topics(),
                 recompute=recompute, progress=progress, baseline=baseline)
     rec = load_recording(input_path, config, **load)
     rec2 = load_recording(validate_path, config, **load) if validate_path else None

@@ -315,7 +315,7 @@ class Model:
         if self.config_root == "linear_bearing":
             from bb_friction_ros.config import load_linear_bearing
             return load_linear_bearing(path, overrides)
-        from bb_friction_ros.ball_screw.parameters import load_ball_screw
+        from bb_friction_ros.model_file import load_ball_screw
         return load_ball_screw(path, overrides)
 
     def parameters(self, base):

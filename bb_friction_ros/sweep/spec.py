@@ -28,7 +28,7 @@ import zlib
 
 import numpy as np
 
-from bb_friction_ros.config import _EDGE_UNITS, ConfigError, load_yaml
+from bb_friction_ros.config import ConfigError, load_yaml, parse_number, si_key
 from bb_friction_ros.sweep.models import MODELS
 
 # Bump when the meaning of a spec or the layout of its results changes: an old results
@@ -251,26 +251,16 @@ def _parameter(name, parameters, model, path):
     """Return (Parameter, factor to SI) for a name possibly written with an edge unit."""
     if not isinstance(name, str):
         raise ConfigError(f"{path}: parameter names are strings, got {name!r}")
-    if name in parameters:
-        return parameters[name], 1.0
-    head, dot, last = name.rpartition(".")
-    for edge, si, factor in _EDGE_UNITS:
-        if last.endswith(edge):
-            candidate = head + dot + last[: -len(edge)] + si
-            if candidate in parameters:
-                return parameters[candidate], factor
+    resolved = si_key(name, parameters)
+    if resolved is not None:
+        return parameters[resolved[0]], resolved[1]
     raise ConfigError(f"{path}: unknown parameter of model {model.name} (known: "
                       f"{', '.join(sorted(parameters))}; edge units *_deg, *_mm, *_um)")
 
 
 def _number(value, path):
-    if isinstance(value, str):
-        try:   # YAML 1.1 reads 2.1e11 (no dot) as a string, as in config files
-            value = float(value)
-        except ValueError:
-            pass
-    if isinstance(value, bool) or not isinstance(value, (int, float)) \
-            or not math.isfinite(value):
+    value = parse_number(value, path)
+    if not math.isfinite(value):
         raise ConfigError(f"{path}: expected a finite number, got {value!r}")
     return value
 

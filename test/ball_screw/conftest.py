@@ -2,7 +2,7 @@
 
 import pytest
 
-from bb_friction_ros.ball_screw.parameters import load_ball_screw
+from bb_friction_ros.model_file import load_ball_screw
 from bb_friction_ros.ball_screw.screw_model import ScrewModel
 
 

@@ -8,7 +8,7 @@ import pytest
 from bb_friction_ros.ball_screw import geometry as geo
 from bb_friction_ros.ball_screw import kernel
 from bb_friction_ros.ball_screw.module import solve_two_ball_module
-from bb_friction_ros.ball_screw.parameters import load_ball_screw
+from bb_friction_ros.model_file import load_ball_screw
 from bb_friction_ros.ball_screw.screw_model import ScrewModel
 from bb_friction_ros.ball_screw.simulation import run_whole_screw
 from bb_friction_ros.ball_screw.single_ball import LENGTH_SCALE_M

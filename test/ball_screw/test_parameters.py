@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from bb_friction_ros.ball_screw.parameters import load_ball_screw
+from bb_friction_ros.model_file import load_ball_screw
 from bb_friction_ros.config import ConfigError
 
 YAML = Path(__file__).resolve().parents[2] / "config" / "ball_screw.yaml"

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from bb_friction_ros.ball_screw.parameters import load_ball_screw
+from bb_friction_ros.model_file import load_ball_screw
 from bb_friction_ros.ball_screw.simulation import run_whole_screw, summarize
 from bb_friction_ros.ball_screw.whole_screw import isotonic_ring_projection, WholeScrew
 

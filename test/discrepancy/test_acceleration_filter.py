@@ -12,8 +12,8 @@ import math
 import numpy as np
 import pytest
 
-from bb_friction_ros.discrepancy.terms import (AccelerationFilter, filter_lag_s, LiveTerms,
-                                               load_terms, segments, zero_phase_acceleration)
+from bb_friction_ros.empirical_terms import (AccelerationFilter, filter_lag_s, LiveTerms,
+                                             load_terms, segments, zero_phase_acceleration)
 
 
 def causal(t, v, fc, gap):

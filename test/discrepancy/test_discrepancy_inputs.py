@@ -13,11 +13,11 @@ import pytest
 import yaml
 
 from bb_friction_ros.bags import with_measurement, write_events
-from bb_friction_ros.ball_screw.parameters import load_ball_screw
+from bb_friction_ros.model_file import load_ball_screw
 from bb_friction_ros.config import ConfigError
 from bb_friction_ros.discrepancy.cli import add_discrepancy_parser
 from bb_friction_ros.discrepancy.synthetic import draw_effect, synthesize
-from bb_friction_ros.discrepancy.terms import load_terms, TermSet
+from bb_friction_ros.empirical_terms import load_terms, TermSet
 from bb_friction_ros.replay import replay
 
 HIDDEN = ("viscous_drag", "lead_error")

@@ -20,15 +20,15 @@ import math
 
 import numpy as np
 import pytest
-import yaml
 
 from bb_friction_ros.bags import with_measurement, write_events
+from bb_friction_ros.config import bundled_config
 from bb_friction_ros.discrepancy.data import Recording, run_times
 from bb_friction_ros.discrepancy.settings import DiscrepancySettings
 from bb_friction_ros.discrepancy.synthetic import draw_effect, synthesize
-from bb_friction_ros.discrepancy.terms import (AccelerationFilter, load_terms, make_term,
-                                               TermSet)
-from bb_friction_ros.discrepancy.workflow import analyse, summary_of, with_acceleration
+from bb_friction_ros.discrepancy.workflow import analyse, summary_of
+from bb_friction_ros.empirical_terms import AccelerationFilter, make_term, TermSet
+from bb_friction_ros.model_file import read_model_file, write_model_file
 from bb_friction_ros.replay import replay
 
 from .test_discrepancy_inputs import run_cli
@@ -200,12 +200,9 @@ def test_bag_with_baseline_zero(base, tmp_path):
 def test_replay_evaluates_inertia_with_the_causal_filter(base, tmp_path):
     """Live = replay: the runner's empirical part is J times AccelerationFilter's alpha."""
     cfg = tmp_path / "aug.yaml"
-    from bb_friction_ros.config import bundled_config
-    raw = yaml.safe_load(open(bundled_config("ball_screw.yaml")))
-    terms = [{"name": "inertia", "params": {"j_kg_m2": 3e-4, "accel_cutoff_hz": 10.0,
-                                             "max_gap_s": 0.1}}]
-    cfg.write_text(yaml.safe_dump({"ball_screw": raw.get("ball_screw", raw),
-                                   "empirical_terms": terms}))
+    base_section, _ = read_model_file(bundled_config("ball_screw.yaml"))
+    inertia = make_term("inertia", {"j_kg_m2": 3e-4, "accel_cutoff_hz": 10.0, "max_gap_s": 0.1})
+    write_model_file(cfg, base_section, TermSet([inertia]))
     r = base.recording
     bag = tmp_path / "bag"
     write_events(bag, with_measurement(base.events, r.torque_pred_nm), storage="sqlite3")

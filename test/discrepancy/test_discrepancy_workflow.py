@@ -16,7 +16,7 @@ import pytest
 from bb_friction_ros.discrepancy.settings import DiscrepancySettings, load_settings
 from bb_friction_ros.discrepancy.synthetic import (draw_effect, EFFECT_RANGES, named_correctly,
                                                    random_case, synthesize)
-from bb_friction_ros.discrepancy.terms import LIBRARY, TermSet
+from bb_friction_ros.empirical_terms import LIBRARY, TermSet
 from bb_friction_ros.discrepancy.workflow import analyse, InsufficientData, summary_of
 
 SETTINGS = DiscrepancySettings()

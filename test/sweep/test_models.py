@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from bb_friction_ros.ball_screw.module import solve_two_ball_module
-from bb_friction_ros.ball_screw.parameters import load_ball_screw
+from bb_friction_ros.model_file import load_ball_screw
 from bb_friction_ros.config import load_linear_bearing
 from bb_friction_ros.linear_bearing.case_study import LinearPairCase
 from bb_friction_ros.sweep.models import (FAILED, INVALID, MODELS, NONCONVERGED, OK, evaluate,

@@ -30,12 +30,12 @@ angle_ripple       sum_h a_h sin(h phi) + b_h cos(h phi)                        
 
 omega: nut velocity [rad/s]; alpha: nut acceleration [rad/s^2] (low-pass filtered derivative of
 omega: ``AccelerationFilter``); phi: nut angle [rad] (cumulative: the nut's travel along the
-screw for ``stroke_position``, P_k the Legendre polynomials, xi clipped to [-1, 1]); W: axial load [N] (force of the balls on
-the nut along +z, as in the model); t: input stamp relative to the first sample of the run
-(the runner passes stamp - first stamp since its last reset) [s].  ``e(phi)`` is the axial
-position error of the nut relative to the nominal lead [m]: by virtual work it changes the
-nut torque by W de/dphi, which the model (friction only; the ideal W p / 2 pi is excluded)
-leaves out.
+screw for ``stroke_position``, P_k the Legendre polynomials, xi clipped to [-1, 1]); W: axial
+load [N] (force of the balls on the nut along +z, as in the model); t: input stamp relative to
+the first sample of the run (the runner passes stamp - first stamp since its last reset) [s].
+``e(phi)`` is the axial position error of the nut relative to the nominal lead [m]: by virtual
+work it changes the nut torque by W de/dphi, which the model (friction only; the ideal W p / 2
+pi is excluded) leaves out.
 
 In ``augmented.yaml`` a term is ``{name: <name>, params: {<param>_<unit>: value}}``; SI keys,
 or the project's edge units (``sin1_um`` for ``sin1_m``).  ``load_terms`` validates a list
@@ -50,7 +50,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from bb_friction_ros.config import _EDGE_UNITS, ConfigError, field, from_mapping
+from bb_friction_ros.config import ConfigError, field, from_mapping, si_key
 
 # Harmonics of the lead error per revolution that a term can carry.  Beyond the fourth the
 # torque ripple of a ground screw is below any torque sensor's resolution.
@@ -513,15 +513,7 @@ def make_term(name, values):
 def _given_fields(params, cls):
     """Return the SI field names that the keys of ``params`` set (edge units resolved)."""
     names = {f.name for f in dataclasses.fields(cls)}
-    given = set()
-    for key in params:
-        if key in names:
-            given.add(key)
-            continue
-        for edge, si, _ in _EDGE_UNITS:
-            if key.endswith(edge) and key[: -len(edge)] + si in names:
-                given.add(key[: -len(edge)] + si)
-    return given
+    return {si_key(key, names)[0] for key in params if si_key(key, names) is not None}
 
 
 def _load_one(entry, path):
@@ -666,8 +658,10 @@ def segments(t_s, max_gap_s):
 
 def zero_phase_acceleration(t_s, velocity_rad_s, cutoff_hz, max_gap_s, min_segment_samples=5):
     """
-    Return the nut acceleration [rad/s^2] for analysis: ``AccelerationFilter`` forward, then
-    backward in time on its output, per continuous segment (zero phase: no lag).
+    Return the nut acceleration [rad/s^2] for analysis, with zero phase (no lag).
+
+    ``AccelerationFilter`` runs forward, then backward in time on its output, per continuous
+    segment.
 
     The derivative is the backward pass's own rate state (negated: its time runs backwards),
     so no numerical differentiation adds noise.  Segments shorter than

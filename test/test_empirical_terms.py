@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from bb_friction_ros.config import ConfigError
-from bb_friction_ros.discrepancy.terms import LIBRARY, load_terms, make_term, TermSet
+from bb_friction_ros.empirical_terms import LIBRARY, load_terms, make_term, TermSet
 
 ALL_TERMS = [
     {"name": "viscous_drag", "params": {"c_nm_s_per_rad": 0.004}},

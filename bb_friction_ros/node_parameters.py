@@ -1,0 +1,94 @@
+"""
+The parameters of ``friction_node``: one definition for the node and for replay.
+
+Each parameter is a ``config.field`` with its default, unit, meaning and range.  The node
+derives its ROS parameter descriptors from them (``node.PARAMETERS``); ``bb-friction replay``
+and the discrepancy workflow take the same dataclass, so a value the node refuses is refused
+offline too, with the same message.  Types are checked as ROS checks them: a ``double``
+parameter refuses the integer ``100``, an ``integer`` one refuses ``256.0``.  No rclpy here.
+"""
+
+import dataclasses
+
+from bb_friction_ros.config import ConfigError, field, load_yaml, validate
+
+NODE_NAME = "friction_node"
+
+_ROS_TYPES = {bool: "a bool", int: "an integer", float: "a double", str: "a string"}
+
+
+@dataclasses.dataclass(frozen=True)
+class NodeParameters:
+    """ROS parameters of friction_node (validated on construction)."""
+
+    config_file: str = field("", None, "model file: ball-screw YAML, optionally with "
+                             "empirical_terms (empty: the bundled config/ball_screw.yaml)")
+    nut_joint: str = field("nut_joint", None, "name of the nut joint in nut_state")
+    model_rate_hz: float = field(100.0, "Hz", "whole-screw model steps per second of input "
+                                 "time", lo=1.0, hi=2000.0)
+    queue_size: int = field(256, "1", "inputs waiting for the model thread; when full the "
+                            "oldest is dropped (newest wins)", lo=1, hi=100000)
+    groups_rate_hz: float = field(10.0, "Hz", "contact-group status rate", lo=0.1, hi=1000.0)
+    diagnostics_rate_hz: float = field(1.0, "Hz", "diagnostics rate", lo=0.1, hi=100.0)
+    max_axial_load_n: float = field(1.0e5, "N", "loads above this are rejected as absurd",
+                                    lo=1.0, hi=1.0e7)
+    reliable_qos: bool = field(False, None, "inputs with reliable QoS instead of the "
+                               "sensor-data profile")
+
+    def __post_init__(self):
+        """Refuse a wrong type or an out-of-range value, naming the parameter."""
+        for f in dataclasses.fields(self):
+            check_type(f"{NODE_NAME}.{f.name}", f, getattr(self, f.name))
+        validate(self, NODE_NAME)
+
+
+# Changeable while the node runs; a change of a MODEL_PARAMETERS one rebuilds the model.
+RUNTIME = frozenset({"nut_joint", "model_rate_hz", "groups_rate_hz", "max_axial_load_n",
+                     "config_file"})
+MODEL_PARAMETERS = frozenset({"config_file", "model_rate_hz"})
+FIELDS = {f.name: f for f in dataclasses.fields(NodeParameters)}
+
+
+def ros_type(f):
+    """Return the Python type of a parameter's ROS type (bool, int, float or str)."""
+    return type(f.default)
+
+
+def check_type(path, f, value):
+    """Refuse ``value`` unless it has the parameter's ROS type (bool is not an integer)."""
+    want = ros_type(f)
+    if type(value) is not want:
+        raise ConfigError(f"{path}: expected {_ROS_TYPES[want]} ({f.metadata['doc']}), "
+                          f"got {value!r}")
+
+
+def node_parameters(values, base=NodeParameters()):
+    """
+    Return ``base`` with the parameters in mapping ``values`` changed (validated).
+
+    Names that are not parameters of the node are refused.
+    """
+    for name in values:
+        if name not in FIELDS:
+            raise ConfigError(f"{NODE_NAME}.{name}: not a parameter of {NODE_NAME} (known: "
+                              f"{', '.join(FIELDS)})")
+    return dataclasses.replace(base, **values)
+
+
+def load_params_file(path):
+    """
+    Return the NodeParameters of a ROS params file (``friction_node: ros__parameters:``).
+
+    Other nodes' sections and ROS's own parameters (``use_sim_time``...) are ignored, as
+    the node ignores them; a value of the node is checked exactly as the node checks it.
+    """
+    data = load_yaml(path)
+    params = {}
+    for key, section in data.items():
+        if isinstance(key, str) and key.lstrip("/").endswith(NODE_NAME) \
+                and isinstance(section, dict):
+            params = section.get("ros__parameters") or {}
+            if not isinstance(params, dict):
+                raise ConfigError(f"{path}: {key}.ros__parameters: expected a mapping, got "
+                                  f"{type(params).__name__}")
+    return node_parameters({k: v for k, v in params.items() if k in FIELDS})
