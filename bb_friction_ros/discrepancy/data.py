@@ -38,8 +38,6 @@ CSV_ACCELERATION = "nut_accel_rad_s2"
 # Rows a run of a multi-run CSV needs: fewer between two backward steps of t_s is not a run
 # but rows out of order (a shuffled or reversed file).
 MIN_RUN_ROWS = 10
-# --baseline choices: "model" predicts with the ball-screw model, "zero" has no model.
-BASELINES = ("model", "zero")
 
 
 class InputProblem(ValueError):

@@ -1,10 +1,11 @@
 """
 Where the model disagrees: the noise level and the residual per operating regime.
 
-The noise level is estimated from the data, not assumed: the residual's first differences
-remove everything that changes slowly from sample to sample (every candidate effect does),
-and a median absolute deviation ignores the few steps at reversals.  For white noise of std
-sigma the differences have std sigma sqrt(2).
+The noise level is estimated from the data, not assumed: the residual's differences remove
+everything that changes slowly from sample to sample (every candidate effect does), and a
+median absolute deviation ignores the few steps at reversals.  For white noise of std sigma
+the differences have std sigma sqrt(2).  Measured torque is often smooth at the sample rate,
+so the lag grows until the noise has decorrelated (``noise_model``).
 
 A regime is a bin of one variable: direction, |nut speed| per direction, nut angle within a
 revolution, axial load, time, acceleration (accelerating / decelerating) and the nut's travel

@@ -6,10 +6,12 @@ candidate terms.  Each term is linear in its amplitudes; a nonlinear parameter (
 velocity, thermal time constant) is profiled over a log grid, then refined by a bounded 1-D
 search.
 
-With six terms and at most ``max_terms`` (3) of them, every subset is fitted (41 subsets, a
-fraction of a second), so no greedy path can trap the answer.  For each size m the subset of
-lowest BIC = n ln(RSS/n) + k ln n (k = amplitudes + profiled parameters) is kept, provided
-its amplitudes have their physical sign (a viscous, seal or Stribeck drag is >= 0).  The size
+Every subset of at most ``max_terms`` (5) of the library's terms is fitted, so no greedy path
+can trap the answer; ``Gram`` makes each fit a few small solves, independent of the number of
+samples.  For each size m the subset of lowest BIC = n' ln(RSS/n) + k ln n' (k = amplitudes
++ profiled parameters; n' = n / tau, the effective samples of correlated noise) is kept,
+provided its amplitudes have their physical sign (a viscous, seal or Stribeck drag is >= 0)
+and lie in their validated range.  The size
 chosen minimises BIC + ``bic_threshold`` m: every term must bring strong evidence, not just
 any improvement.  A larger model must also lower the RMSE of a blocked K-fold
 cross-validation (contiguous time blocks) against the next smaller choice, or the smaller one

@@ -5,13 +5,18 @@ The discrepancy workflow: residual, where, which effect, add it, show the gap sh
 ``run_discrepancy`` adds reading the input and writing ``augmented.yaml``, ``summary.json``
 and ``report.md`` with its PNGs.
 
+0. The nut acceleration: the CSV's column, or derived per continuous segment with the
+   zero-phase filter (``with_acceleration``).
 1. Residual = measured - predicted, the prediction from the replay path (data.py).
-2. Where: the noise level is estimated from the residual itself (regimes.noise_std_nm) and
-   the residual is binned by direction, speed, angle within a revolution, load and time;
-   significant bins are the ``regions``.
+2. Where: the noise level and its autocorrelation time are estimated from the residual
+   itself (regimes.noise_model) and the residual is binned by direction, speed, angle within
+   a revolution, load, time, acceleration and stroke position; significant bins are the
+   ``regions``.
 3. Which effect: selection.select on the first (1 - holdout_fraction) of the samples.
 4. The selected terms go into ``augmented.yaml`` (base config + ``empirical_terms``).
-5. RMSE before/after, regime table and plots on the held-out last part.
+5. RMSE before/after, regime table and plots on the held-out last part; terms that do not
+   lower the held-out RMSE are not adopted (verdict "none", ``rejected_terms``).
+6. ``--validate``: the terms applied, unchanged, to a second recording (``validate``).
 
 A recording that cannot tell effects apart raises InsufficientData listing everything
 missing (the CLI writes it to summary.json with verdict "none" and exits 2): fewer than

@@ -49,6 +49,11 @@ def test_one_hidden_effect_is_named_and_removed(base, name):
     summary = summary_of(a)
     assert summary["regions"], "a real effect must show in some regime"
     assert summary["effects"][0]["units"]
+    if name == "inertia":
+        # issue #10 item 4: the J alpha signature shows in the acceleration regimes before
+        # the fit, and is gone from them after it
+        assert any(r["variable"] == "acceleration" for r in summary["regions"])
+        assert not any(r["variable"] == "acceleration" for r in summary["regions_remaining"])
     if name in ("offset", "coulomb_asymmetry"):
         # the reference trajectory reverses without standing still: one ambiguous effect
         assert summary["ambiguities"] and not summary["ambiguities"][0]["separated"]
