@@ -16,14 +16,18 @@ the same model path), unless ``recompute`` is set. Rows with a non-finite measur
 kept for the model (continuity of the ball state) but not analysed.
 """
 
+from array import array
 import csv
 import dataclasses
+import itertools
+import math
 from pathlib import Path
+import sys
 from typing import Optional
 
 import numpy as np
 
-from bb_friction_ros.bags import Event, measured_torque_at, read_events, Topics
+from bb_friction_ros.bags import Event, iter_events, measured_torque_at, Topics
 from bb_friction_ros.config import bundled_config, ConfigError
 from bb_friction_ros.empirical_terms import Inputs
 from bb_friction_ros.model_file import load_model_file
@@ -38,6 +42,11 @@ CSV_ACCELERATION = "nut_accel_rad_s2"
 # Rows a run of a multi-run CSV needs: fewer between two backward steps of t_s is not a run
 # but rows out of order (a shuffled or reversed file).
 MIN_RUN_ROWS = 10
+# Events per call of the replay path: each chunk's predictions are packed into float arrays
+# before the next chunk is read, so a long bag is never in memory as Python objects (issue
+# #13, finding 26: a 10-minute 1 kHz bag peaked at 928 MB as lists of events and
+# predictions).
+EVENTS_PER_CHUNK = 65536
 
 
 class InputProblem(ValueError):
@@ -91,81 +100,153 @@ def inputs_of(rec, mask=None):
                      rec.axial_load_n[sel], accel)
 
 
+class Packed:
+    """
+    Per-sample columns of predictions (or of bare input samples), packed as they arrive.
+
+    ``array`` holds 8 bytes a value where a Prediction object costs hundreds.
+    """
+
+    COLUMNS = ("stamp_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n",
+               "torque_total_nm")
+
+    def __init__(self):
+        """Start empty."""
+        self.cols = {c: array("d") for c in self.COLUMNS}
+        self.converged = array("b")
+
+    def add(self, p, torque_nm=None, converged=True):
+        """Append a Prediction, or an input sample with ``torque_nm`` and ``converged``."""
+        for c in self.COLUMNS[:4]:
+            self.cols[c].append(getattr(p, c))
+        self.cols["torque_total_nm"].append(p.torque_total_nm if torque_nm is None
+                                            else torque_nm)
+        self.converged.append(p.converged if torque_nm is None else converged)
+
+    def __len__(self):
+        """Return the number of samples."""
+        return len(self.converged)
+
+    def column(self, name):
+        """Return column ``name`` as a float array (no copy)."""
+        return np.frombuffer(self.cols[name], dtype=float) if len(self) else np.zeros(0)
+
+
+def _chunks(events, progress):
+    it = iter(events)
+    if progress:
+        from tqdm import tqdm
+        it = tqdm(it, desc="replay", unit="msg", file=sys.stderr, mininterval=0.5)
+    while True:
+        chunk = list(itertools.islice(it, EVENTS_PER_CHUNK))
+        if not chunk:
+            return
+        yield chunk
+
+
 def predict_events(events, config_path, replay_settings, progress=False):
-    """Run events through the replay path; return (predictions, runner stats)."""
+    """
+    Run events (any iterable, consumed once) through the replay path.
+
+    Return (Packed predictions, runner stats).  The events go through ``replay.run_events``
+    a chunk at a time with one runner and assembler, so the result is the same as in one call.
+    """
     runner = build_runner(config_path, replay_settings.model_rate_hz)
     assembler = InputAssembler(replay_settings.nut_joint, replay_settings.max_axial_load_n)
-    preds = run_events(events, runner, assembler, progress=progress)
-    return preds, runner.stats
+    packed = Packed()
+    for chunk in _chunks(events, progress):
+        for p in run_events(chunk, runner, assembler):
+            packed.add(p)
+    return packed, runner.stats
 
 
-def _from_predictions(preds, measured_nm, config_path, info):
-    t = np.array([p.stamp_s for p in preds], dtype=float)
-    t_run = run_times(t)
-    angle = np.array([p.nut_angle_rad for p in preds], dtype=float)
-    speed = np.array([p.nut_velocity_rad_s for p in preds], dtype=float)
-    load = np.array([p.axial_load_n for p in preds], dtype=float)
-    pred = np.array([p.torque_total_nm for p in preds], dtype=float)
-    info["base_terms"] = list(load_model_file(config_path)[1].names)   # in pred already
-    return Recording(t, t_run, angle, speed, load, np.asarray(measured_nm, dtype=float), pred,
-                     np.array([p.converged for p in preds], dtype=bool), info)
+def _from_packed(packed, measured_nm, info, base_terms=()):
+    t = packed.column("stamp_s")
+    info["base_terms"] = list(base_terms)     # in the prediction already
+    return Recording(t, run_times(t), packed.column("nut_angle_rad"),
+                     packed.column("nut_velocity_rad_s"), packed.column("axial_load_n"),
+                     np.asarray(measured_nm, dtype=float), packed.column("torque_total_nm"),
+                     np.frombuffer(packed.converged, dtype=np.int8).astype(bool), info)
 
 
 def zero_baseline_events(events, replay_settings):
-    """Return the nut-state samples of ``events`` without a model (``--baseline zero``)."""
+    """
+    Return the nut-state samples of ``events`` without a model (``--baseline zero``).
+
+    Return (Packed samples with torque 0, rejected inputs by reason).
+    """
     from bb_friction_ros.runner import InputError
     assembler = InputAssembler(replay_settings.nut_joint, replay_settings.max_axial_load_n)
-    samples, rejected = [], {}
+    packed, rejected = Packed(), {}
     for e in events:
         try:
             if e.kind == "axial_load":
                 assembler.on_axial_load(e.value)
             elif e.kind == "nut_state":
-                samples.append(assembler.on_nut_state(e.stamp_s, e.names, e.positions,
-                                                      e.velocities))
+                packed.add(assembler.on_nut_state(e.stamp_s, e.names, e.positions,
+                                                  e.velocities), torque_nm=0.0)
         except InputError as exc:
             rejected[exc.reason] = rejected.get(exc.reason, 0) + 1
-    return samples, rejected
+    return packed, rejected
+
+
+def _split_measured(events, stamps, values):
+    """Yield the input events; append the measured torque's stamps and values instead."""
+    for e in events:
+        if e.kind == "measured_torque":
+            if math.isfinite(e.value):
+                stamps.append(e.stamp_s)
+                values.append(e.value)
+        else:
+            yield e
 
 
 def load_bag(path, config_path, replay_settings=NodeParameters(), topics=Topics(),
              progress=False, baseline="model"):
-    """Read a rosbag2, predict through the replay path, align the measured torque."""
+    """
+    Read a rosbag2, predict through the replay path, align the measured torque.
+
+    The bag is streamed: inputs go through the model as they are read, and predictions and
+    measurements are kept as packed float columns only.
+    """
     try:
-        events, counts = read_events(path, topics)
+        events, counts = iter_events(path, topics)
     except (FileNotFoundError, ValueError) as exc:
         raise InputProblem(str(exc)) from exc
-    if measured_torque_at(events, []) is None:
-        raise InputProblem(f"{path}: no measured torque: topic {topics.measured_torque!r} "
-                           f"is missing or empty (topics in the bag: "
-                           f"{', '.join(sorted(counts)) or 'none'}); the discrepancy needs "
-                           "a measurement to compare with (--measured-topic)")
+
+    def no_measurement():
+        return InputProblem(f"{path}: no measured torque: topic {topics.measured_torque!r} "
+                            f"is missing or empty (topics in the bag: "
+                            f"{', '.join(sorted(counts)) or 'none'}); the discrepancy needs "
+                            "a measurement to compare with (--measured-topic)")
+    measured = [n for topic, n in counts.items()
+                if topic.lstrip("/") == topics.measured_torque.lstrip("/")]
+    if not any(measured):
+        raise no_measurement()        # before running the model over the whole bag
+    meas_t, meas_v = array("d"), array("d")
+    inputs = _split_measured(events, meas_t, meas_v)
     if baseline == "zero":
-        samples, rejected = zero_baseline_events(events, replay_settings)
-        if not samples:
-            raise InputProblem(f"{path}: no usable nut_state sample (rejected: "
-                               f"{rejected or 'none'})")
-        t = np.array([p.stamp_s for p in samples], dtype=float)
-        meas = measured_torque_at(events, t)
-        del events
+        packed, rejected = zero_baseline_events(inputs, replay_settings)
         info = {"input": str(path), "format": "rosbag2", "baseline": "zero",
                 "prediction_source": "none (--baseline zero: no model of this screw)",
-                "messages": counts, "rejected": rejected, "base_terms": []}
-        return Recording(t, run_times(t),
-                         np.array([p.nut_angle_rad for p in samples], dtype=float),
-                         np.array([p.nut_velocity_rad_s for p in samples], dtype=float),
-                         np.array([p.axial_load_n for p in samples], dtype=float),
-                         np.asarray(meas, dtype=float), np.zeros(t.size),
-                         np.ones(t.size, dtype=bool), info)
-    preds, stats = predict_events(events, config_path, replay_settings, progress)
-    if not preds:
+                "messages": counts, "rejected": rejected}
+        base = ()
+    else:
+        packed, stats = predict_events(inputs, config_path, replay_settings, progress)
+        rejected = dict(stats.rejected)
+        info = {"input": str(path), "format": "rosbag2",
+                "prediction_source": "model (replay path)", "messages": counts,
+                "rejected": rejected, "nonconverged_steps": stats.nonconverged_steps,
+                "resets": stats.resets}
+        base = load_model_file(config_path)[1].names
+    if not meas_t:
+        raise no_measurement()
+    if not len(packed):
         raise InputProblem(f"{path}: no usable nut_state sample (rejected: "
-                           f"{dict(stats.rejected) or 'none'})")
-    meas = measured_torque_at(events, [p.stamp_s for p in preds])   # as replay aligns it
-    info = {"input": str(path), "format": "rosbag2", "prediction_source": "model (replay path)",
-            "messages": counts, "rejected": dict(stats.rejected),
-            "nonconverged_steps": stats.nonconverged_steps, "resets": stats.resets}
-    return _from_predictions(preds, meas, config_path, info)
+                           f"{rejected or 'none'})")
+    measured_events = (Event("measured_torque", t, value=v) for t, v in zip(meas_t, meas_v))
+    meas = measured_torque_at(measured_events, packed.column("stamp_s"))   # as replay does
+    return _from_packed(packed, meas, info, base)
 
 
 def _read_csv_columns(path, required=CSV_REQUIRED):
@@ -224,13 +305,11 @@ def check_time_order(path, t_s):
 
 
 def csv_events(cols, nut_joint):
-    """Return the events a CSV stands for: each row's axial load, then its nut state."""
-    events = []
+    """Yield the events a CSV stands for: each row's axial load, then its nut state."""
     for t, a, w, f in zip(cols["t_s"], cols["nut_angle_rad"], cols["nut_velocity_rad_s"],
                           cols["axial_load_n"]):
-        events.append(Event("axial_load", float(t), value=float(f)))
-        events.append(Event("nut_state", float(t), (nut_joint,), (float(a),), (float(w),)))
-    return events
+        yield Event("axial_load", float(t), value=float(f))
+        yield Event("nut_state", float(t), (nut_joint,), (float(a),), (float(w),))
 
 
 def load_csv(path, config_path, replay_settings=NodeParameters(), recompute=False,
@@ -273,7 +352,8 @@ def load_csv(path, config_path, replay_settings=NodeParameters(), recompute=Fals
     info.update(prediction_source="model (replay path, recomputed from the CSV inputs)",
                 rejected=dict(stats.rejected), nonconverged_steps=stats.nonconverged_steps,
                 resets=stats.resets)
-    rec = _from_predictions(preds, cols["torque_meas_nm"], config_path, info)
+    rec = _from_packed(preds, cols["torque_meas_nm"], info,
+                       load_model_file(config_path)[1].names)
     rec.nut_accel_rad_s2 = accel
     return rec
 

@@ -195,7 +195,10 @@ class Gram:
     once (a 10-minute 1 kHz recording).
     """
 
-    CHUNK_ROWS = 65536
+    # Rows per chunk: the chunk's design (every candidate column at every grid value, ~60)
+    # is the largest array of the selection; 16384 rows keep it near 8 MB, and the products
+    # are as fast as with larger chunks.
+    CHUNK_ROWS = 16384
 
     def __init__(self, cands, x, r, folds):
         self.keys = [(c, nl) for c in cands for nl in c.grid]
@@ -348,8 +351,14 @@ def refine(f, x, r, cache=None, tau=1.0):
             continue
 
         def cost(log_nl, i=i, cand=cand):
-            trial = members[:i] + [(cand, float(math.exp(log_nl)))] + members[i + 1:]
+            value = float(math.exp(log_nl))
+            fresh = (cand.name, value) not in cache
+            trial = members[:i] + [(cand, value)] + members[i + 1:]
             g = fit(trial, x, r, cache, tau)
+            if fresh:
+                # a trial value's column is used once: cached, the search would hold one
+                # column per evaluation (~90 MB on a 10-minute 1 kHz recording)
+                cache.pop((cand.name, value), None)
             # a finite penalty (worse than no model at all) keeps the search arithmetic sane
             return g.rss if g.physical else 2.0 * float(r @ r)
 
