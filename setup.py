@@ -26,7 +26,7 @@ setup(
     entry_points={
         'console_scripts': [
             'bb-friction = bb_friction_ros.cli:main',
-            'friction_node = bb_friction_ros.node:main',
+            'friction_node = bb_friction_ros.node_entry:main',
         ],
     },
 )

@@ -7,6 +7,8 @@ Commands and their flags are contracts that users script against: add, never ren
 import argparse
 import json
 import math
+import os
+from pathlib import Path
 import sys
 
 from bb_friction_ros import __version__
@@ -14,6 +16,57 @@ from bb_friction_ros.ball_screw import cli as screw_cli
 from bb_friction_ros.discrepancy import cli as discrepancy_cli
 from bb_friction_ros.sweep import cli as sweep_cli
 from bb_friction_ros.config import ConfigError, load_linear_bearing
+
+
+def _int_at_least(lo):
+    """Return an argparse type: an integer >= ``lo`` (a bad value exits 2 naming the flag)."""
+    def parse(text):
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        if value < lo:
+            raise argparse.ArgumentTypeError(f"must be >= {lo}, got {value}")
+        return value
+    return parse
+
+
+def _positive_float(text):
+    """Argparse type: a finite number > 0 (NaN, inf, 0 and negatives exit 2)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0.0):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
+    return value
+
+
+class OutputPathError(ValueError):
+    """An output path that cannot be written; the message names it."""
+
+
+def check_out(path, new=False):
+    """
+    Check an output path before any work: a directory we may create or write into.
+
+    ``new``: the path must not exist yet (a rosbag2 directory is created by its writer and
+    never overwritten).  Nothing is created here, so a refused run leaves no trace.
+    """
+    path = Path(path)
+    if new and (path.exists() or path.is_symlink()):
+        raise OutputPathError(f"{path}: exists already; choose another path or delete it")
+    if path.exists() and not path.is_dir():
+        raise OutputPathError(f"{path}: is a file, not a directory")
+    probe = path
+    while not probe.exists():       # the nearest existing ancestor must be a writable dir
+        if probe.parent == probe:
+            break
+        probe = probe.parent
+    if probe.exists() and not probe.is_dir():
+        raise OutputPathError(f"{path}: {probe} is a file, not a directory")
+    if probe.exists() and not os.access(probe, os.W_OK | os.X_OK):
+        raise OutputPathError(f"{path}: {probe} is not writable")
 
 
 def _add_linear_parser(sub):
@@ -55,10 +108,12 @@ def _run_linear(args):
                               f"(-90, 90) deg, got {value}")
     case = LinearPairCase(cfg)
     run = case.numerical if args.model == "numerical" else case.analytical
-    res = run(math.radians(args.theta_deg), cfg.side_force_ratio,
-              math.radians(args.dbeta_tr_deg), math.radians(args.dbeta_tl_deg))
+    import numpy as np
+    with np.errstate(over="ignore", invalid="ignore"):   # an overflow is flagged in res
+        res = run(math.radians(args.theta_deg), cfg.side_force_ratio,
+                  math.radians(args.dbeta_tr_deg), math.radians(args.dbeta_tl_deg))
     if args.json:
-        print(json.dumps(res.as_json()))
+        print(json.dumps(res.as_json(), allow_nan=False))
     elif not res.converged:
         print("NOT CONVERGED: " + "; ".join(res.notes), file=sys.stderr)
     else:
@@ -83,8 +138,8 @@ def _add_reproduce_parser(sub):
                        "report.md, reproduction.json, PNGs")
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--config", help="YAML with a 'linear_bearing' mapping (default: Table 1)")
-    p.add_argument("--grid", type=int, default=25,
-                   help="theta and rho points of the Figs. 8-9 maps (numerical model)")
+    p.add_argument("--grid", type=_int_at_least(2), default=25,
+                   help="theta and rho points of the Figs. 8-9 maps (numerical model; >= 2)")
     p.set_defaults(func=_run_reproduce)
 
 
@@ -113,8 +168,13 @@ def _add_replay_parser(sub):
 
 def _replay_settings(args):
     """Return the node's parameters for replay: the params file, then the flags (checked)."""
-    from bb_friction_ros.node_parameters import load_params_file, node_parameters
-    settings = load_params_file(args.params_file) if args.params_file else None
+    from bb_friction_ros.node_parameters import load_params_file, NODE_NAME, node_parameters
+
+    def warn(name):
+        print(f"bb-friction replay: warning: {args.params_file}: unknown parameter "
+              f"{NODE_NAME}.{name} ignored", file=sys.stderr)
+
+    settings = load_params_file(args.params_file, warn) if args.params_file else None
     changes = {}
     if args.nut_joint:
         changes["nut_joint"] = args.nut_joint
@@ -148,7 +208,7 @@ def _add_node_parser(sub):
 
 
 def _run_node(args):
-    from bb_friction_ros.node import main as node_main
+    from bb_friction_ros.node_entry import main as node_main
     ros_args = ["--ros-args"] + (["--params-file", args.params_file] if args.params_file
                                  else [])
     return node_main(["bb-friction-node"] + ros_args)
@@ -157,14 +217,15 @@ def _run_node(args):
 def _add_demo_parsers(sub):
     p = sub.add_parser("make-demo-bag", help="generate the demo recording (reversing nut "
                        "motion, varying load, synthetic measured torque)")
-    p.add_argument("--out", required=True, help="bag directory to create")
+    p.add_argument("--out", required=True, help="bag directory to create (must not exist)")
     p.add_argument("--storage", choices=("sqlite3", "mcap"), default="mcap")
     p.add_argument("--recording", help="demo_recording YAML (default: bundled)")
-    p.set_defaults(func=_run_make_demo_bag)
+    p.set_defaults(func=_run_make_demo_bag, out_is_new=True)
     p = sub.add_parser("demo", help="play the demo recording through the live node "
                        "in-process, then replay it; write reports")
     p.add_argument("--out", required=True, help="output directory")
-    p.add_argument("--speed", type=float, default=1.0, help="playback speed factor")
+    p.add_argument("--speed", type=_positive_float, default=1.0,
+                   help="playback speed factor (> 0)")
     p.set_defaults(func=_run_demo)
 
 
@@ -229,9 +290,22 @@ def main(argv=None):
         parser.print_help()
         return 0
     try:
+        # One check of --out for every sub-command that writes, before any work.
+        if getattr(args, "out", None) is not None:
+            check_out(args.out, new=getattr(args, "out_is_new", False))
         return args.func(args)
+    except OutputPathError as exc:
+        print(f"bb-friction {args.command}: --out {exc}", file=sys.stderr)
+        return 2
     except ConfigError as exc:
         print(f"bb-friction: config error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        if exc.filename is None:
+            raise
+        # Disk full, permissions changed mid-run, ...: name the file, no traceback.
+        print(f"bb-friction {args.command}: {exc.filename}: {exc.strerror or exc}",
+              file=sys.stderr)
         return 2
 
 

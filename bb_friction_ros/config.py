@@ -11,6 +11,7 @@ with the dotted key and the reason.
 import dataclasses
 import math
 from pathlib import Path
+import warnings
 
 import yaml
 
@@ -23,6 +24,29 @@ def field(default, unit, doc, lo=None, hi=None, lo_open=False, hi_open=False):
     """Declare a config field with its unit, meaning and admissible range [lo, hi]."""
     return dataclasses.field(default=default, metadata={
         "unit": unit, "doc": doc, "lo": lo, "hi": hi, "lo_open": lo_open, "hi_open": hi_open})
+
+
+# Memory a friction-map table or a sweep's results may need before it is refused [MiB]:
+# 8 GiB, a third of a 24 GiB workstation.  The default of every ``*memory_limit_mib``
+# setting; raise the setting, not this, for a bigger machine.
+MEMORY_LIMIT_MIB = 8192.0
+
+
+def format_bytes(n):
+    """Return a byte count for people: ``'60.0 GiB'``, ``'512 MiB'``."""
+    n = float(n)
+    for unit, size in (("TiB", 2**40), ("GiB", 2**30), ("MiB", 2**20), ("kiB", 2**10)):
+        if n >= size:
+            return f"{n / size:.3g} {unit}"
+    return f"{n:.0f} B"
+
+
+def check_memory(need_bytes, limit_mib, path, what, limit_key):
+    """Refuse (ConfigError naming ``path``) what needs more than ``limit_mib`` MiB."""
+    if need_bytes > limit_mib * 2**20:
+        raise ConfigError(f"{path}: {what} needs about {format_bytes(need_bytes)} of memory, "
+                          f"above {limit_key} = {limit_mib:g} MiB; make it coarser or "
+                          "raise the limit")
 
 
 EDGE_UNITS = (   # (suffix in YAML, suffix of the SI field, factor to SI)
@@ -47,6 +71,22 @@ def si_key(key, names):
         if key.endswith(edge) and key[: -len(edge)] + si in names:
             return key[: -len(edge)] + si, factor
     return None
+
+
+def current_name(cls, key, path):
+    """
+    Return the field name for ``key`` of config class ``cls``: ``key``, or its new name.
+
+    A class lists its renamed keys in ``RENAMED = {old: new}``.  Files and scripts written
+    before a rename keep working: the old key is read as the new one, with a FutureWarning
+    that names both (``path`` is the dotted path of the key's mapping).
+    """
+    new = getattr(cls, "RENAMED", {}).get(key)
+    if new is None:
+        return key
+    warnings.warn(f"{path}.{key}: renamed to {new}; read as {new}, please write {new}",
+                  FutureWarning, stacklevel=3)
+    return new
 
 
 def parse_number(value, path, unit=""):
@@ -126,7 +166,7 @@ def from_mapping(cls, data, path):
         if not isinstance(key, str):
             raise ConfigError(f"{path}: key {key!r} is not a name (known: "
                               f"{', '.join(sorted(fields))})")
-        resolved = si_key(key, fields)
+        resolved = si_key(current_name(cls, key, path), fields)
         if resolved is None:
             known = ", ".join(sorted(fields))
             raise ConfigError(f"{path}.{key}: unknown key (known: {known})")
@@ -263,6 +303,9 @@ class LinearBearingConfig:
                                       "result flagged two-point", lo=0.0)
     map_nodes: int = field(4096, "1", "nodes of the tabulated friction map", lo=256,
                            hi=1 << 20)
+    map_memory_limit_mib: float = field(MEMORY_LIMIT_MIB, "MiB", "largest memory the "
+                                        "friction map's build may need; more is refused "
+                                        "before it starts", lo=0.0, lo_open=True)
     # Sec. 2.4.1 statics: 'rigid' solves each ball's and its top groove's equilibrium with
     # the deviated angles; 'diagonal' uses the paper's F_BL = F_TR = sqrt(2)/2 (N_y - N_x).
     contact_force_model: str = dataclasses.field(default="rigid")
@@ -272,6 +315,10 @@ class LinearBearingConfig:
         if self.contact_force_model not in ("rigid", "diagonal"):
             raise ConfigError(f"{path}.contact_force_model: must be 'rigid' or 'diagonal', "
                               f"got {self.contact_force_model!r}")
+        from bb_friction_ros.contact.friction_maps import line_map_bytes
+        check_memory(line_map_bytes(self.map_nodes), self.map_memory_limit_mib,
+                     f"{path}.map_nodes", f"a friction map of {self.map_nodes} nodes",
+                     f"{path}.map_memory_limit_mib")
 
 
 def load_linear_bearing(path=None, overrides=None):

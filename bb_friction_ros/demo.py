@@ -56,8 +56,12 @@ def run_demo(out, events, speed=1.0):
           f"real time, RMSE vs measured {summary.get('rmse_nm', float('nan')):.4f} N m; "
           f"report in {out / 'replay'}")
     skipped = diag["skipped_inputs"]
+    shed = diag.get("shed_inputs", 0)
     if skipped == 0 and len(diffs) == summary["samples"]:
         verdict = f"identical to {max_diff:.1g} N m"
+    elif skipped == 0 and diffs and len(diffs) + shed == summary["samples"]:
+        verdict = (f"identical to {max_diff:.1g} N m on every answered input; {shed} answers "
+                   "were shed as older than max_answer_age_s (counted in /diagnostics)")
     else:
         verdict = (f"max |difference| {max_diff:.3g} N m: the node answered "
                    f"{len(diffs)} of {summary['samples']} inputs and skipped {skipped} model "

@@ -698,9 +698,11 @@ class LiveTerms:
         self.terms = terms
         spec = terms.acceleration_filter()
         self.filter = AccelerationFilter(*spec) if spec else None
+        self.last_accel_rad_s2 = None
 
     def reset(self):
         """Restart the acceleration filter."""
+        self.last_accel_rad_s2 = None       # alpha at the last sample (None: no filter)
         if self.filter is not None:
             self.filter.reset()
 
@@ -709,5 +711,6 @@ class LiveTerms:
         accel = None
         if self.filter is not None:
             accel = self.filter.update(stamp_s, nut_velocity_rad_s)
+        self.last_accel_rad_s2 = accel
         return float(self.terms.torque_nm(t_run_s, nut_angle_rad, nut_velocity_rad_s,
                                           axial_load_n, accel))

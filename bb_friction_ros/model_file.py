@@ -54,7 +54,24 @@ def load_ball_screw(path=None, overrides=None):
     """
     Return the validated BallScrewConfig of a model file and/or nested dict ``overrides``.
 
-    Without ``path``: the defaults (paper Table 4) with the overrides.
+    Parameters
+    ----------
+    path : str or pathlib.Path, optional
+        Model file; its keys are SI or the edge units ``*_deg``, ``*_mm``, ``*_um``.
+        Default: the built-in values (paper Table 4).
+    overrides : dict, optional
+        Nested mapping merged over the file, e.g. ``{"errors": {"theta_amplitude_deg": 1}}``.
+
+    Returns
+    -------
+    BallScrewConfig
+        Every field in SI units.
+
+    Raises
+    ------
+    ConfigError
+        On an unknown, mistyped or out-of-range key, naming it.
+
     """
     section = {} if path is None else _parts(path)[0]
     return from_mapping(BallScrewConfig, _merge(section, overrides), SECTION)
@@ -67,7 +84,28 @@ def read_model_file(path):
 
 
 def load_model_file(path):
-    """Return (BallScrewConfig, TermSet) of a model file, both validated."""
+    """
+    Return the ball-screw config and the empirical terms of a model file, both validated.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        Model file (``config/ball_screw.yaml``, or ``augmented.yaml`` of the discrepancy
+        workflow).
+
+    Returns
+    -------
+    config : BallScrewConfig
+        Every field in SI units.
+    terms : TermSet
+        The fitted terms (empty without ``empirical_terms``); their torque adds to the physics.
+
+    Raises
+    ------
+    ConfigError
+        On an unreadable file or a bad key, naming it.
+
+    """
     section, terms = read_model_file(path)
     return from_mapping(BallScrewConfig, section, SECTION), terms
 

@@ -34,6 +34,13 @@ class NodeParameters:
                                     lo=1.0, hi=1.0e7)
     reliable_qos: bool = field(False, None, "inputs with reliable QoS instead of the "
                                "sensor-data profile")
+    max_answer_age_s: float = field(0.02, "s", "largest age of an answer, from the input's "
+                                    "arrival to publication; older answers are shed and "
+                                    "counted", lo=1e-4, hi=10.0)
+    profile_horizon_periods: float = field(2.0, "1", "look-ahead profile length in model "
+                                           "periods of motion", lo=2.0, hi=20.0)
+    profile_points: int = field(3, "1", "points of the look-ahead profile (the first is the "
+                                "step's own angle)", lo=2, hi=64)
 
     def __post_init__(self):
         """Refuse a wrong type or an out-of-range value, naming the parameter."""
@@ -41,12 +48,26 @@ class NodeParameters:
             check_type(f"{NODE_NAME}.{f.name}", f, getattr(self, f.name))
         validate(self, NODE_NAME)
 
+    def check(self, path):
+        """Refuse an empty ``nut_joint``: it matches no joint, so every input is rejected."""
+        if not self.nut_joint.strip():
+            raise ConfigError(f"{path}.nut_joint: must be a non-empty joint name, got "
+                              f"{self.nut_joint!r}")
+
 
 # Changeable while the node runs; a change of a MODEL_PARAMETERS one rebuilds the model.
 RUNTIME = frozenset({"nut_joint", "model_rate_hz", "groups_rate_hz", "max_axial_load_n",
-                     "config_file"})
+                     "config_file", "max_answer_age_s", "profile_horizon_periods",
+                     "profile_points"})
 MODEL_PARAMETERS = frozenset({"config_file", "model_rate_hz"})
 FIELDS = {f.name: f for f in dataclasses.fields(NodeParameters)}
+# declared by rclpy itself for every node: in a params file, neither ours nor unknown
+ROS_BUILTIN_PARAMETERS = frozenset({"use_sim_time", "start_type_description_service"})
+
+
+def unknown_parameters(names):
+    """Return, sorted, the names that are neither the node's parameters nor ROS's own."""
+    return sorted(set(names) - set(FIELDS) - ROS_BUILTIN_PARAMETERS)
 
 
 def ros_type(f):
@@ -75,12 +96,14 @@ def node_parameters(values, base=NodeParameters()):
     return dataclasses.replace(base, **values)
 
 
-def load_params_file(path):
+def load_params_file(path, on_unknown=None):
     """
     Return the NodeParameters of a ROS params file (``friction_node: ros__parameters:``).
 
     Other nodes' sections and ROS's own parameters (``use_sim_time``...) are ignored, as
     the node ignores them; a value of the node is checked exactly as the node checks it.
+    ``on_unknown(name)`` is called for each other name in the node's section (a misspelt
+    parameter; the node warns about it too).
     """
     data = load_yaml(path)
     params = {}
@@ -91,4 +114,7 @@ def load_params_file(path):
             if not isinstance(params, dict):
                 raise ConfigError(f"{path}: {key}.ros__parameters: expected a mapping, got "
                                   f"{type(params).__name__}")
+    if on_unknown is not None:
+        for name in unknown_parameters(params):
+            on_unknown(name)
     return node_parameters({k: v for k, v in params.items() if k in FIELDS})

@@ -120,12 +120,11 @@ def write_prediction_csv(path, preds, meas=None):
 
 def plot_replay(out, preds, meas):
     """Predicted vs measured torque, and the B2B groups over time."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
     t = np.array([p.stamp_s for p in preds])
     t = t - t[0]
-    fig, ax = plt.subplots(3, 1, figsize=(10, 8), sharex=True)
+    fig = Figure(figsize=(10, 8))
+    ax = fig.subplots(3, 1, sharex=True)
     if meas is not None:
         ax[0].plot(t, meas, lw=0.6, color="0.5", label="measured")
     ax[0].plot(t, [p.torque_total_nm for p in preds], lw=1.0, label="predicted (total)")
@@ -147,4 +146,3 @@ def plot_replay(out, preds, meas):
         a.grid(True)
     fig.tight_layout()
     fig.savefig(Path(out) / "replay_torque_and_groups.png", dpi=110)
-    plt.close(fig)

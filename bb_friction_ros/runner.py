@@ -12,9 +12,21 @@ the nut motion changes (start, stop, reversal); it then advances the ball azimut
 measured nut rotation since that step.  Every nut-state sample gets a prediction from
 the latest model state (zero-order hold; its age is reported), so the output keeps the input
 rate while the model runs at its own rate.
+
+Feedforward policy (a step that did not converge): the prediction keeps the model's raw
+numbers with ``converged = False``, but ``feedforward_nm``, the value meant for a controller,
+holds the torque of the last converged step while the nut keeps moving in that step's
+direction, and is 0 N m otherwise (after a reversal, at standstill, or before any converged
+step): an unconverged solve can swing by tens of N m, and the old direction's friction after
+a reversal would push the axis the wrong way.  ``feedforward_held`` says the value is held.
+
+Look-ahead (``look_ahead_profile``): after a step, a copy of the model state is stepped ahead
+along the extrapolated motion (same velocity and load) to give the torque at a row of angles
+ahead of the input; a controller interpolates in it (``feedforward.FeedforwardInterpolator``).
 """
 
 from collections import Counter
+import copy
 from dataclasses import dataclass, field
 import math
 import time
@@ -58,6 +70,13 @@ class Prediction:
     groups: tuple               # ((ball ids rear first), (b2b forces N)) per contact group
     n_balls: int
     stepped: bool               # this sample triggered a model step
+    feedforward_nm: float = 0.0     # safe value for a controller (module docstring)
+    feedforward_held: bool = False  # feedforward_nm is held from the last converged step
+
+
+def _sign(x):
+    """Sign of a float as -1.0, 0.0 or 1.0 (np.sign costs ~1 us per scalar call)."""
+    return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
 
 
 class InputError(ValueError):
@@ -152,6 +171,7 @@ class ModelRunner:
         self._model_stamp = None
         self._model_direction = 0.0
         self._state = None
+        self._held = None           # (torque, direction) of the last converged step
 
     def reset(self):
         """Forget the model state; the next sample starts a new run."""
@@ -161,6 +181,19 @@ class ModelRunner:
         self._state = None
         if self._live_terms is not None:
             self._live_terms.reset()
+        self._held = None
+
+    def step_due(self, sample):
+        """
+        Return True if ``process(sample)`` would step the model (or reset it).
+
+        Cheap; the live node answers samples with no step due at once, in its executor.
+        """
+        if self._state is None or self._last_stamp is None \
+                or sample.stamp_s < self._last_stamp:
+            return True
+        return (sample.stamp_s - self._model_stamp >= self.period_s - STAMP_RESOLUTION_S
+                or _sign(sample.nut_velocity_rad_s) != self._model_direction)
 
     def warm_up(self, axial_load_n, nut_velocity_rad_s):
         """
@@ -211,30 +244,41 @@ class ModelRunner:
             self.screw.reset(sample.nut_angle_rad)
             self._state = self._step(sample, 0.0)
             self._model_stamp = sample.stamp_s
-            self._model_direction = np.sign(sample.nut_velocity_rad_s)
+            self._model_direction = _sign(sample.nut_velocity_rad_s)
             stepped = True
         elif (sample.stamp_s - self._model_stamp >= self.period_s - STAMP_RESOLUTION_S
-              or np.sign(sample.nut_velocity_rad_s) != self._model_direction):
+              or _sign(sample.nut_velocity_rad_s) != self._model_direction):
             # A reversal (or a start/stop) is due at once: Coulomb friction flips there, and
             # a held torque of the old sign is the worst feed-forward a controller can get.
             if allow_step:
                 self._state = self._step(sample, sample.stamp_s - self._model_stamp)
                 self._model_stamp = sample.stamp_s
-                self._model_direction = np.sign(sample.nut_velocity_rad_s)
+                self._model_direction = _sign(sample.nut_velocity_rad_s)
                 stepped = True
             else:
                 self.stats.skipped_steps += 1
         st = self._state
         extra = 0.0
         if self._live_terms is not None:
-            extra = self._live_terms.torque_nm(sample.stamp_s, sample.stamp_s - self._first_stamp,
-                                               sample.nut_angle_rad, sample.nut_velocity_rad_s,
-                                               sample.axial_load_n)
+            extra = self._live_terms.torque_nm(
+                sample.stamp_s, sample.stamp_s - self._first_stamp, sample.nut_angle_rad,
+                sample.nut_velocity_rad_s, sample.axial_load_n)
+        total = st.torque_total_nm + extra
+        if stepped:
+            self._update_held(total, sample.nut_velocity_rad_s)
+        converged = self._state_converged
+        if converged:
+            ff, held = total, False
+        else:
+            ff, held = 0.0, True
+            if self._held is not None \
+                    and self._held[1] == _sign(sample.nut_velocity_rad_s) != 0.0:
+                ff = self._held[0]
         return Prediction(sample.stamp_s, sample.nut_angle_rad, sample.nut_velocity_rad_s,
-                          sample.axial_load_n, st.torque_total_nm + extra, st.torque_b2g_nm,
-                          st.torque_b2b_nm, extra, bool(st.converged),
+                          sample.axial_load_n, total, st.torque_b2g_nm,
+                          st.torque_b2b_nm, extra, converged,
                           sample.stamp_s - self._model_stamp, self._state_groups,
-                          self._state_n_balls, stepped)
+                          self._state_n_balls, stepped, ff, held)
 
     def _step(self, sample, dt_s):
         t0 = time.perf_counter()
@@ -244,10 +288,90 @@ class ModelRunner:
         # answered from for every input until the next step: convert once, here
         self._state_groups = _groups(res.groups)
         self._state_n_balls = int(np.size(res.azimuth_rad))
+        self._state_converged = bool(res.converged)
         self.stats.model_steps += 1
         if not res.converged:
             self.stats.nonconverged_steps += 1
         return res
+
+    def _update_held(self, total_nm, nut_velocity_rad_s):
+        """
+        Keep the feedforward to hold after the step just taken (module docstring).
+
+        ``total_nm`` is the step's own total: physics plus the terms at the step's inputs,
+        evaluated once per sample (the inertia term's causal filter advances with each call).
+        """
+        if not self._state_converged:
+            return
+        w = nut_velocity_rad_s
+        self._held = (total_nm, _sign(w)) if w != 0.0 else None
+
+    def profile_seed(self, sample):
+        """
+        Capture what ``look_ahead_profile`` needs right after ``sample`` stepped the model.
+
+        The screw is copied shallowly: a step rebinds its state arrays and never writes
+        into them, so stepping the copy leaves this runner's model untouched (tested).
+        """
+        accel = None if self._live_terms is None else self._live_terms.last_accel_rad_s2
+        return ProfileSeed(copy.copy(self.screw), sample, self._state.torque_total_nm,
+                           self._state_converged, self.period_s, self.terms,
+                           sample.stamp_s - self._first_stamp, accel)
+
+
+@dataclass(frozen=True)
+class ProfileSeed:
+    """A model state right after a step, to be stepped ahead by ``look_ahead_profile``."""
+
+    screw: object
+    sample: InputSample
+    torque_total_nm: float      # the step's own torque (model only, no empirical terms)
+    converged: bool
+    period_s: float
+    terms: object
+    run_time_s: float           # stamp since the run's first sample (empirical terms' time)
+    # the inertia term's causal acceleration at the sample, held over the horizon (the
+    # extrapolated velocity is constant, but the filter's alpha is the best guess of the
+    # inertia torque for the next few ms); None without an inertia term
+    nut_accel_rad_s2: object = None
+
+
+def look_ahead_profile(seed, horizon_periods=2.0, n_points=3, should_stop=None):
+    """
+    Predicted friction torque ahead of a model step, at constant velocity and load.
+
+    Points: the step's own angle psi_0 (its torque equals the prediction there), then
+    ``n_points - 1`` angles evenly spaced up to psi_0 + sign(omega) * |omega| * horizon,
+    horizon = ``horizon_periods`` model periods of motion; a copy of the model is stepped to
+    each in turn.  At standstill (omega = 0) the profile is the single point psi_0.
+    Returns (angles [rad], torques [N m], converged), or None if ``should_stop()`` became
+    true between two steps (the live node gives way to a pending model step).
+    """
+    s = seed.sample
+    w = s.nut_velocity_rad_s
+
+    def extra(t_s, angle):
+        if seed.terms is None:
+            return 0.0
+        return float(seed.terms.torque_nm(seed.run_time_s + t_s, angle, w, s.axial_load_n,
+                                          seed.nut_accel_rad_s2))
+
+    angles = [s.nut_angle_rad]
+    torques = [seed.torque_total_nm + extra(0.0, s.nut_angle_rad)]
+    converged = seed.converged
+    if w == 0.0 or n_points < 2:
+        return angles, torques, converged
+    screw = seed.screw
+    dt = horizon_periods * seed.period_s / (n_points - 1)
+    for i in range(1, n_points):
+        if should_stop is not None and should_stop():
+            return None
+        angle = s.nut_angle_rad + w * dt * i
+        res = screw.step(angle, w, s.axial_load_n, dt)
+        angles.append(angle)
+        torques.append(res.torque_total_nm + extra(dt * i, angle))
+        converged = converged and bool(res.converged)
+    return angles, torques, converged
 
 
 class InputAssembler:
@@ -264,6 +388,18 @@ class InputAssembler:
         self.nut_joint = nut_joint
         self.max_axial_load_n = max_axial_load_n
         self.load_n = None
+
+    @property
+    def nut_joint(self):
+        """Name of the nut joint in JointState messages (never empty)."""
+        return self._nut_joint
+
+    @nut_joint.setter
+    def nut_joint(self, name):
+        # an empty name matches no JointState entry: every input would be rejected
+        if not isinstance(name, str) or not name.strip():
+            raise ValueError(f"nut_joint must be a non-empty joint name, got {name!r}")
+        self._nut_joint = name
 
     def on_axial_load(self, force_z_n):
         """Hold a new axial load [N]."""
@@ -288,7 +424,7 @@ def build_runner(config_path, model_rate_hz):
     """
     cfg, terms = load_model_file(config_path)
     runner = ModelRunner(WholeScrew(cfg), model_rate_hz, terms if len(terms) else None)
-    runner.warm_up(cfg.operation.axial_load_n, cfg.operation.nut_speed_rad_s)
+    runner.warm_up(cfg.operation.axial_load_n, cfg.operation.nut_velocity_rad_s)
     return runner
 
 

@@ -47,7 +47,7 @@ def bench_screw(model, n_balls, steps, realtime=0):
     dt = op.duration_s / op.n_steps
     times, iters, groups, conv = [], [], [], []
     for k in range(1, steps + 1):
-        r = screw.step(op.nut_speed_rad_s * k * dt, op.nut_speed_rad_s,
+        r = screw.step(op.nut_velocity_rad_s * k * dt, op.nut_velocity_rad_s,
                        op.axial_load_n * n_balls / base.track.n_balls, dt)
         if k > 1:                       # the first step is the cold start
             times.append(r.solve_time_s)

@@ -4,7 +4,9 @@ import json
 
 import pytest
 
+from bb_friction_ros import paper
 from bb_friction_ros.cli import main
+from invariants import paper_approx
 
 LINEAR_KEYS = {"eps", "f_b2b_n", "p_f_w", "p_b2b_w", "converged", "solve_time_s"}
 
@@ -24,7 +26,8 @@ def test_linear_json_contract(capsys, model):
     obj = json.loads(out)
     assert LINEAR_KEYS <= set(obj)
     assert len(obj["eps"]) == 2 and obj["converged"] is True
-    assert obj["f_b2b_n"] == pytest.approx(4.01 if model == "numerical" else 3.74, rel=0.02)
+    assert obj["f_b2b_n"] == paper_approx(paper.F_B2B_NUM if model == "numerical"
+                                          else paper.F_B2B_AN)
 
 
 def test_linear_table_and_case_b(capsys):
@@ -50,11 +53,20 @@ def test_reproduce_writes_report(tmp_path, capsys):
     rows = data["Linear ball bearing (Sec. 2)"]
     assert {"paper", "ours", "deviation"} <= set(rows[0])
     by_key = {r["quantity"]: r for r in rows}
-    assert by_key["f_an"]["ours"] == pytest.approx(3.74, rel=0.01)
+    assert by_key["f_an"]["paper"] == paper.F_B2B_AN.value
+    assert by_key["f_an"]["ours"] == paper_approx(paper.F_B2B_AN)
+    # each row shows the tolerance of paper.py and whether it is met
+    assert by_key["f_an"]["tolerance"] == "+-1 %" and by_key["f_an"]["within_tolerance"]
+    assert by_key["t_num"]["tolerance"] == "" and by_key["t_num"]["within_tolerance"] is None
+    screw = {r["quantity"]: r for r in data["Ball screw (Sec. 3)"]}
+    gap = screw["Table 5 (a) F_B2B, theta2 = 2 deg"]      # a number not reached is shown so
+    assert gap["source"] == paper.SCREW_F_B2B_A.source and gap["target"] is False
+    assert gap["within_tolerance"] == paper.SCREW_F_B2B_A.within(gap["ours"])
     for name in ("fig05_friction_maps", "fig08_velocity_difference",
                  "fig09_b2b_force_and_loss", "fig10_relative_displacement"):
         assert (tmp_path / f"{name}.png").stat().st_size > 10_000
-    assert "| f_num |" in (tmp_path / "report.md").read_text()
+    report = (tmp_path / "report.md").read_text()
+    assert "| f_num |" in report and "| (+-10 %) |" in report
 
 
 def test_every_documented_command_is_registered(capsys):

@@ -5,14 +5,17 @@ import re
 
 import pytest
 
+from bb_friction_ros import paper
 from bb_friction_ros.config import ConfigError, load_linear_bearing, parse_number, si_key
 
 
 def test_defaults_are_table1():
     """Built-in defaults are the paper's Table 1 and Sec. 2.4 case, in SI."""
     cfg = load_linear_bearing()
-    assert cfg.ball_radius_m == 5e-3 and cfg.conformity == 0.56
-    assert cfg.nominal_contact_angle_rad == pytest.approx(math.pi / 4)
+    for key, printed in paper.TABLE1.items():
+        if key != "theta_rad":            # a case-study input, not a bearing property
+            assert getattr(cfg, key) == pytest.approx(printed, rel=1e-15), key
+    assert cfg.k_f == paper.K_F.value
 
 
 def test_edge_units_convert(tmp_path):

@@ -19,7 +19,8 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 
-from bb_friction_msgs.msg import ContactGroup, ContactGroupStatus, FrictionPrediction
+from bb_friction_msgs.msg import (ContactGroup, ContactGroupStatus, FeedforwardProfile,
+                                  FrictionPrediction)
 from builtin_interfaces.msg import Time
 from std_msgs.msg import Header
 
@@ -51,6 +52,14 @@ CONTRACTS = {
         'nut_angle_rad': 'double',
         'n_balls': 'uint32',
         'groups': 'sequence<bb_friction_msgs/ContactGroup>',
+    },
+    FeedforwardProfile: {
+        'header': 'std_msgs/Header',
+        'nut_angle_rad': 'sequence<double>',
+        'torque_total_nm': 'sequence<double>',
+        'nut_velocity_rad_s': 'double',
+        'axial_load_n': 'double',
+        'converged': 'boolean',
     },
 }
 
@@ -84,6 +93,14 @@ SAMPLES = {
         'n_balls': 30,
         'groups': GROUPS,
     },
+    FeedforwardProfile: {
+        'header': HEADER,
+        'nut_angle_rad': [1.0, 0.9375, 0.875],       # moving backwards: decreasing angles
+        'torque_total_nm': [-0.25, -0.3125, -1e-300],
+        'nut_velocity_rad_s': -6.25,
+        'axial_load_n': -1500.0,
+        'converged': False,
+    },
 }
 
 
@@ -113,6 +130,9 @@ def make_rosbags(store, msg_type, data):
             stamp=stamp, frame_id=header['frame_id'])
     if 'groups' in kwargs:
         kwargs['groups'] = [make_rosbags(store, ContactGroup, g) for g in kwargs['groups']]
+    for name in ('nut_angle_rad', 'torque_total_nm'):
+        if isinstance(kwargs.get(name), list):
+            kwargs[name] = np.array(kwargs[name], dtype=np.float64)
     if 'ball_ids' in kwargs:
         kwargs['ball_ids'] = np.array(kwargs['ball_ids'], dtype=np.uint32)
         kwargs['b2b_forces_n'] = np.array(kwargs['b2b_forces_n'], dtype=np.float64)

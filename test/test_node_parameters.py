@@ -20,6 +20,14 @@ BAD_VALUES = [   # issue 13 finding 23: replay accepted the first two, and "fast
     ("reliable_qos", 1, "reliable_qos: expected a bool"),
     ("nut_joint", 3, "nut_joint: expected a string"),
     ("model_rate_hz", float("nan"), "model_rate_hz: must be finite"),
+    # issue 13 finding 5: an empty joint name matches nothing, every input would be rejected
+    ("nut_joint", "", "nut_joint: must be a non-empty joint name"),
+    ("nut_joint", "  ", "nut_joint: must be a non-empty joint name"),
+    # issue 11: the answer-age bound and the look-ahead profile's shape
+    ("max_answer_age_s", 0.0, "max_answer_age_s: must be >= 0.0001 s"),
+    ("max_answer_age_s", 1, "max_answer_age_s: expected a double"),
+    ("profile_horizon_periods", 1.0, "profile_horizon_periods: must be >= 2.0"),
+    ("profile_points", 1, "profile_points: must be >= 2"),
 ]
 
 
@@ -49,3 +57,16 @@ def test_replay_cli_refuses_what_the_node_refuses(tmp_path, capsys):
 def test_unknown_parameter_is_refused_by_name():
     with pytest.raises(ConfigError, match="friction_node.rate: not a parameter"):
         node_parameters({"rate": 1.0})
+
+
+def test_replay_warns_about_an_unknown_parameter(tmp_path, capsys):
+    """Issue 13 finding 5: a misspelt key in a params file is named, not silently ignored."""
+    from bb_friction_ros.cli import main
+    p = tmp_path / "params.yaml"
+    p.write_text("friction_node:\n  ros__parameters:\n    queue_sise: 10\n"
+                 "    use_sim_time: false\n")
+    assert main(["replay", str(tmp_path / "no_bag"), "--params-file", str(p), "--out",
+                 str(tmp_path / "out")]) == 2      # no bag: refused after the warning
+    err = capsys.readouterr().err
+    assert "unknown parameter friction_node.queue_sise ignored" in err
+    assert "use_sim_time" not in err

@@ -13,6 +13,14 @@ the same screw motion, an isometry, so the normal relative velocity is exactly z
 The projected slip is linear in the two balls' states, st = B_r x_r + B_f x_f, and the unit
 force terms are affine in its direction e = st/|st|: g = c + K e (``linear_terms``).  The
 compiled solver uses this form for the exact derivative of the friction direction.
+
+References
+----------
+.. [1] Lin, B., Duan, M., Okwudire, C. E., 2019, "Analytical and Low-Order Numerical Modeling
+   of Ball-to-Ball Contact Friction in Linear Ball Bearings and Ball Screws", ASME J. Tribol.
+   141(8), DOI 10.1115/1.4043630.
+   Eqs. (56)-(61), Fig. 16.
+
 """
 
 import numpy as np

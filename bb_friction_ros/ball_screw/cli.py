@@ -6,6 +6,7 @@ A bad configuration exits with status 2 and names the key; a solver that did not
 reported as ``"converged": false`` (and exit status 1), never silently.
 """
 
+import dataclasses
 import json
 import math
 import sys
@@ -15,37 +16,61 @@ from bb_friction_ros.config import ConfigError
 DEFAULT_CONFIG = None    # built-in defaults equal config/ball_screw.yaml
 
 
-def _load(args, overrides=None):
-    """Load the ball screw config named by ``--config`` with command-line overrides."""
+def _load(args):
+    """Load the ball screw config named by ``--config`` (default: built-in values)."""
     from bb_friction_ros.model_file import load_ball_screw
-    return load_ball_screw(args.config, overrides)
+    return load_ball_screw(args.config)
+
+
+def _with_flags(cfg, flags):
+    """
+    Return ``cfg`` with ``operation`` fields set from command-line flags.
+
+    ``flags``: (flag, field, value in SI) for the flags given.  A flag overrides the file
+    whatever spelling the file uses (``module_theta1_deg`` or ``_rad``); each value is
+    range-checked as a config value and a bad one is refused by its flag.
+    """
+    from bb_friction_ros.config import validate
+    op = cfg.operation
+    for flag, name, value, shown in flags:
+        try:
+            op = dataclasses.replace(op, **{name: value})
+            validate(op, "operation")
+        except (ConfigError, TypeError) as exc:
+            raise ConfigError(f"{flag} {shown}: {exc}") from exc
+    return dataclasses.replace(cfg, operation=op)
 
 
 def _screw_pair(args):
     """Run the two-ball module and print its Table 5 quantities."""
     from bb_friction_ros.ball_screw.module import solve_two_ball_module
     from bb_friction_ros.ball_screw.screw_model import ScrewModel
-    over = {"operation": {}}
-    if args.axial_load_n is not None:
-        over["operation"]["module_axial_load_n"] = args.axial_load_n
-    if args.theta1_deg is not None:
-        over["operation"]["module_theta1_deg"] = args.theta1_deg
-    if args.theta2_deg is not None:
-        over["operation"]["module_theta2_deg"] = args.theta2_deg
+    flags = [(flag, name, conv(value), value) for flag, name, value, conv in (
+        ("--axial-load-n", "module_axial_load_n", args.axial_load_n, float),
+        ("--theta1-deg", "module_theta1_rad", args.theta1_deg, math.radians),
+        ("--theta2-deg", "module_theta2_rad", args.theta2_deg, math.radians))
+        if value is not None]
     try:
-        cfg = _load(args, over)
+        cfg = _with_flags(_load(args), flags)
     except ConfigError as exc:
         print(f"bb-friction screw-pair: {exc}", file=sys.stderr)
         return 2
     op = cfg.operation
     res = solve_two_ball_module(ScrewModel(cfg), op.module_theta1_rad, op.module_theta2_rad,
                                 op.module_axial_load_n)
+    # An unconverged solve's last iterate is no result: its numbers are null (as ``linear``).
     out = {"f_b2b_n": res.f_b2b_n, "friction_increase": res.friction_increase,
            "torque_nm": res.torque_nm, "torque_no_b2b_nm": res.torque_no_b2b_nm,
-           "loss_w": res.loss_w, "converged": res.converged,
-           "solve_time_s": res.solve_time_s}
+           "loss_w": res.loss_w}
+    out = {k: float(v) if res.converged and math.isfinite(v) else None
+           for k, v in out.items()}
+    out.update(converged=bool(res.converged), solve_time_s=res.solve_time_s)
     if args.json:
-        print(json.dumps(out))
+        print(json.dumps(out, allow_nan=False))
+    elif not res.converged:
+        print(f"two-ball module: NOT CONVERGED at W = {op.module_axial_load_n:g} N, theta = "
+              f"{math.degrees(op.module_theta1_rad):g} / "
+              f"{math.degrees(op.module_theta2_rad):g} deg: no result", file=sys.stderr)
     else:
         print(f"two-ball module: theta = {math.degrees(op.module_theta1_rad):g} / "
               f"{math.degrees(op.module_theta2_rad):g} deg, W = {op.module_axial_load_n:g} N")
@@ -62,11 +87,15 @@ def _screw_sim(args):
     """Run the whole-screw simulation and write its outputs."""
     from bb_friction_ros.ball_screw.simulation import run_whole_screw, summarize, \
         write_outputs
-    over = {}
-    if args.steps is not None:
-        over = {"operation": {"n_steps": args.steps}}
     try:
-        cfg = _load(args, over)
+        cfg = _load(args)
+        if args.steps is not None:
+            # Same step size, a shorter (or longer) run: --steps N simulates the first N
+            # steps of the configured run, duration_s / n_steps each.
+            op = cfg.operation
+            dt = op.duration_s / op.n_steps
+            cfg = _with_flags(cfg, [("--steps", "n_steps", args.steps, args.steps)])
+            cfg = _with_flags(cfg, [("--steps", "duration_s", args.steps * dt, args.steps)])
     except ConfigError as exc:
         print(f"bb-friction screw-sim: {exc}", file=sys.stderr)
         return 2
@@ -101,6 +130,7 @@ def add_screw_sim_parser(subparsers):
     _add_config(p)
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--steps", type=int, default=None,
-                   help="override operation.n_steps (same step size: a shorter run)")
+                   help="simulate only N steps of the configured step size "
+                   "(operation.duration_s / operation.n_steps): a shorter or longer run")
     p.set_defaults(func=_screw_sim)
     return p

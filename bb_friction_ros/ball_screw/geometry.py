@@ -8,6 +8,14 @@ side is a circular arc of radius R_G = 2 conf R_B whose centre lies on the nomin
 line at distance R_G - R_B beyond the nominal ball centre, so the contact normal always
 passes through the arc centre: the paper's 18-unknown state per ball (Eq. 55) reduces
 exactly to the ball-centre offset (2) and the kinematics (4).
+
+References
+----------
+.. [1] Lin, B., Duan, M., Okwudire, C. E., 2019, "Analytical and Low-Order Numerical Modeling
+   of Ball-to-Ball Contact Friction in Linear Ball Bearings and Ball Screws", ASME J. Tribol.
+   141(8), DOI 10.1115/1.4043630.
+   Eqs. (34)-(42), (45), (56), Figs. 12-13, 15-17, 19.
+
 """
 
 import math

@@ -23,6 +23,14 @@ changes of the solver, not of the model:
 
 Derivatives with respect to u: u enters only through the nut arcs' z_3 shift, so each
 derivative in u is -g cos(alpha) times the derivative in zeta.
+
+References
+----------
+.. [1] Lin, B., Duan, M., Okwudire, C. E., 2019, "Analytical and Low-Order Numerical Modeling
+   of Ball-to-Ball Contact Friction in Linear Ball Bearings and Ball Screws", ASME J. Tribol.
+   141(8), DOI 10.1115/1.4043630.
+   Eqs. (54)-(61) (compiled form of ``solver``).
+
 """
 
 import math
@@ -36,8 +44,9 @@ try:
     def _jit(fn):
         # fastmath limited to FMA contraction, reciprocals and reassociation (20 % faster
         # evaluation, agrees with the numpy path to ~1e-14); never nnan/ninf: the line
-        # search tests for non-finite residuals.
-        return numba.njit(cache=True, error_model="numpy",
+        # search tests for non-finite residuals.  nogil: the live node's executor thread
+        # takes and answers inputs while the model thread is inside a solve.
+        return numba.njit(cache=True, error_model="numpy", nogil=True,
                           fastmath={"contract", "arcp", "reassoc"})(fn)
 except ImportError:        # pragma: no cover - numba is an exec_depend
     HAVE_NUMBA = False
@@ -522,7 +531,7 @@ def newton_direction(seq, starts, rear_of, front_of, jac, dax, res, axial, cons,
 
 @_jit
 def _residual(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid,
-              scale, load_w, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, res, jac, dax, terms,
+              scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, res, jac, dax, terms,
               per_contact, g_r, g_f, speed, dgr_r, dgr_f, dgf_r, dgf_f, cons, want_jac):
     """Full residual (balls + B2B + axial + equal rates) and Jacobian; returns (axial, norm)."""
     ax = evaluate_balls(x, u, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
@@ -536,7 +545,7 @@ def _residual(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, co
             res[r, j] += g_r[c, j] * fhat[c]
             res[f, j] += g_f[c, j] * fhat[c]
         cons[c] = x[r, 2] - x[f, 2]
-    axial = (ax + load_w) / scale
+    axial = (ax + axial_load_n) / scale
     norm = abs(axial)
     for i in range(res.shape[0]):
         for j in range(6):
@@ -561,7 +570,7 @@ def _alloc(n, kc):
 
 @_jit
 def solve_active(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
-                 grid, scale, load_w, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, tol,
+                 grid, scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, tol,
                  max_it, max_rate, disp_limit):
     """
     Newton with trust region and halving line search for one active set.
@@ -576,7 +585,7 @@ def solve_active(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
     x = x.copy()
     fhat = fhat.copy()
     axial, norm = _residual(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
-                            coef_n, grid, scale, load_w, rear, front, b_r, b_f, c_r, c_f,
+                            coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f,
                             k_r, k_f, cur[0], cur[1], cur[2], cur[3], cur[4], cur[5], cur[6],
                             cur[7], cur[8], cur[9], cur[10], cur[11], cur[12], True)
     rear_of, front_of, seq, starts, ok_chain = chains(n, rear, front)
@@ -620,7 +629,7 @@ def solve_active(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
             for c in range(kc):
                 fn[c] = fhat[c] + step * df[c]
             ax_n, nn = _residual(xn, un, fn, centres, sign, cst, k_load, k_axis, on_nut,
-                                 coef_s, coef_n, grid, scale, load_w, rear, front, b_r, b_f,
+                                 coef_s, coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f,
                                  c_r, c_f, k_r, k_f, trial[0], trial[1], trial[2], trial[3],
                                  trial[4], trial[5], trial[6], trial[7], trial[8], trial[9],
                                  trial[10], trial[11], trial[12], not last)
@@ -629,7 +638,7 @@ def solve_active(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
             step *= 0.5
         if last and not nn <= tol:
             ax_n, nn = _residual(xn, un, fn, centres, sign, cst, k_load, k_axis, on_nut,
-                                 coef_s, coef_n, grid, scale, load_w, rear, front, b_r, b_f,
+                                 coef_s, coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f,
                                  c_r, c_f, k_r, k_f, trial[0], trial[1], trial[2], trial[3],
                                  trial[4], trial[5], trial[6], trial[7], trial[8], trial[9],
                                  trial[10], trial[11], trial[12], True)

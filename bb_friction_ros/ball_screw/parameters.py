@@ -8,8 +8,9 @@ file may use the edge units ``*_deg``, ``*_mm``, ``*_um`` (converted by ``config
 
 import dataclasses
 import math
+from typing import ClassVar
 
-from bb_friction_ros.config import ConfigError, field
+from bb_friction_ros.config import MEMORY_LIMIT_MIB, ConfigError, check_memory, field
 
 _DEG = math.pi / 180.0
 
@@ -95,8 +96,11 @@ class NutTrack:
 class Operation:
     """Operating point of the whole-screw simulation (Sec. 3.4) and of the module (Table 5)."""
 
-    nut_speed_rad_s: float = field(2.0 * math.pi, "rad/s", "nut angular velocity omega_N",
-                                   lo=-1e4, hi=1e4)
+    # signed, so a velocity: the old name stays readable (config.current_name)
+    RENAMED: ClassVar[dict] = {"nut_speed_rad_s": "nut_velocity_rad_s"}
+
+    nut_velocity_rad_s: float = field(2.0 * math.pi, "rad/s", "nut angular velocity omega_N "
+                                      "(signed)", lo=-1e4, hi=1e4)
     axial_load_n: float = field(1500.0, "N", "axial load W: force of the balls on the nut "
                                 "along +z; W > 0 opposes omega_N > 0", lo=-1e6, hi=1e6)
     duration_s: float = field(2.0, "s", "simulated time", lo=0.0, lo_open=True)
@@ -145,6 +149,18 @@ class SolverSettings:
                                  hi=4096)
     map_azimuth_nodes: int = field(256, "1", "azimuth nodes of the friction map", lo=16,
                                    hi=8192)
+    map_memory_limit_mib: float = field(MEMORY_LIMIT_MIB, "MiB", "largest memory the "
+                                        "friction map's build may need; more is refused "
+                                        "before it starts", lo=0.0, lo_open=True)
+
+    def check(self, path):
+        """Cross-field checks: the friction map fits the memory limit (issue 13 #20)."""
+        from bb_friction_ros.contact.friction_maps import sphere_map_bytes
+        check_memory(sphere_map_bytes(self.map_polar_nodes, self.map_azimuth_nodes),
+                     self.map_memory_limit_mib,
+                     f"{path}.map_polar_nodes x map_azimuth_nodes",
+                     f"a friction map of {self.map_polar_nodes} x {self.map_azimuth_nodes} "
+                     "nodes", f"{path}.map_memory_limit_mib")
 
 
 @dataclasses.dataclass(frozen=True)

@@ -10,25 +10,34 @@ import dataclasses
 import math
 from pathlib import Path
 
+from bb_friction_ros import paper
 from bb_friction_ros.ball_screw.module import solve_two_ball_module
 from bb_friction_ros.ball_screw.parameters import BallScrewConfig
 from bb_friction_ros.ball_screw.screw_model import ScrewModel
 from bb_friction_ros.ball_screw.simulation import run_whole_screw, summarize, write_outputs
 
-_GAP_NOTE = ("absolute F_B2B ~0.54 x paper, as the independent re-implementation found; "
+_GAP_NOTE = ("absolute F_B2B ~0.54 x paper, as an independent re-implementation found; "
              "F_B2B/W depends only on W/E*, see docs/assumptions_ball_screw.md")
 
 
-def _row(quantity, paper, ours, unit, note="", relative=True):
-    """One report row; deviation relative (fraction) or absolute (same unit)."""
+def _row(quantity, paper, ours, unit, note="", relative=True, check=None):
+    """
+    One report row; deviation relative (fraction) or absolute (same unit).
+
+    ``check``: the ``paper.PaperValue`` whose source and tolerance the report shows.
+    """
     if paper is None or ours is None:
         dev = None
     elif relative:
         dev = (ours - paper) / paper
     else:
         dev = ours - paper
-    return {"quantity": quantity, "paper": paper, "ours": ours, "deviation": dev,
-            "unit": unit, "note": note}
+    row = {"quantity": quantity, "paper": paper, "ours": ours, "deviation": dev,
+           "unit": unit, "note": note}
+    if check is not None:
+        row["check"] = check
+        row["source"] = check.source
+    return row
 
 
 def reproduce_ball_screw(out_dir, config=None, n_steps=None):
@@ -38,50 +47,63 @@ def reproduce_ball_screw(out_dir, config=None, n_steps=None):
     op = cfg.operation
     w = op.module_axial_load_n
     th1 = op.module_theta1_rad
-    case_a = solve_two_ball_module(model, th1, math.radians(2.0), w)
-    case_b = solve_two_ball_module(model, th1, math.radians(3.0), w)
+    th2_a, th2_b = paper.TABLE4["module_theta2_rad"]       # Sec. 3.3 cases (a), (b)
+    case_a = solve_two_ball_module(model, th1, th2_a, w)
+    case_b = solve_two_ball_module(model, th1, th2_b, w)
     rows = [
-        _row("Table 5 (a) F_B2B, theta2 = 2 deg", 1.92, case_a.f_b2b_n, "N", _GAP_NOTE),
-        _row("Table 5 (b) F_B2B, theta2 = 3 deg", 2.89, case_b.f_b2b_n, "N", _GAP_NOTE),
-        _row("Table 5 F_B2B ratio (b)/(a)", 2.89 / 1.92, case_b.f_b2b_n / case_a.f_b2b_n,
-             "1", "depends on the physics, not on the unstated convention"),
-        _row("Sec. 3.3 friction increase (a)", 39.2, 100 * case_a.friction_increase, "%",
-             "loss with B2B / loss without - 1", relative=False),
-        _row("Sec. 3.3 friction increase (b)", 60.2, 100 * case_b.friction_increase, "%",
-             "loss with B2B / loss without - 1", relative=False),
-        _row("Table 5 (a) solve time", 15.3, case_a.solve_time_s, "s",
-             "paper: MATLAB fsolve; ours includes the cold start"),
+        _row("Table 5 (a) F_B2B, theta2 = 2 deg", paper.SCREW_F_B2B_A.value, case_a.f_b2b_n,
+             "N", _GAP_NOTE, check=paper.SCREW_F_B2B_A),
+        _row("Table 5 (b) F_B2B, theta2 = 3 deg", paper.SCREW_F_B2B_B.value, case_b.f_b2b_n,
+             "N", _GAP_NOTE, check=paper.SCREW_F_B2B_B),
+        _row("Table 5 F_B2B ratio (b)/(a)", paper.SCREW_F_B2B_RATIO.value,
+             case_b.f_b2b_n / case_a.f_b2b_n, "1",
+             "depends on the physics, not on the unstated convention",
+             check=paper.SCREW_F_B2B_RATIO),
+        _row("Sec. 3.3 friction increase (a)", paper.SCREW_FRICTION_INCREASE_A.value,
+             100 * case_a.friction_increase, "%", "loss with B2B / loss without - 1",
+             relative=False, check=paper.SCREW_FRICTION_INCREASE_A),
+        _row("Sec. 3.3 friction increase (b)", paper.SCREW_FRICTION_INCREASE_B.value,
+             100 * case_b.friction_increase, "%", "loss with B2B / loss without - 1",
+             relative=False, check=paper.SCREW_FRICTION_INCREASE_B),
+        _row("Table 5 (a) solve time", paper.SCREW_SOLVE_TIME_A.value, case_a.solve_time_s,
+             "s", "paper: MATLAB fsolve; ours includes the cold start",
+             check=paper.SCREW_SOLVE_TIME_A),
+        # 0.0: drive power = sum of losses is a physical law, not a number of the paper
         _row("Table 5 (a) power balance error", 0.0, case_a.power_balance_error, "1",
              "|omega_N T_f - losses| / losses", relative=False),
     ]
     # Sensitivity to the unstated conventions (each doubles or halves W/E*).
-    per_ball = solve_two_ball_module(model, th1, math.radians(2.0), 2.0 * w)
-    rows.append(_row("Table 5 (a) F_B2B if 50 N on EACH ball", 1.92, per_ball.f_b2b_n, "N",
+    per_ball = solve_two_ball_module(model, th1, th2_a, 2.0 * w)
+    rows.append(_row("Table 5 (a) F_B2B if 50 N on EACH ball",
+                     paper.SCREW_F_B2B_A.value, per_ball.f_b2b_n, "N",
                      f"friction increase then {100 * per_ball.friction_increase:.1f} %"))
     stiff = dataclasses.replace(cfg, material=dataclasses.replace(
         cfg.material, youngs_modulus_pa=2.0 * cfg.material.youngs_modulus_pa))
-    alt = solve_two_ball_module(ScrewModel(stiff), th1, math.radians(2.0), w)
-    rows.append(_row("Table 5 (a) F_B2B if E* = E/(1-nu^2)", 1.92, alt.f_b2b_n, "N",
+    alt = solve_two_ball_module(ScrewModel(stiff), th1, th2_a, w)
+    rows.append(_row("Table 5 (a) F_B2B if E* = E/(1-nu^2)",
+                     paper.SCREW_F_B2B_A.value, alt.f_b2b_n, "N",
                      f"friction increase then {100 * alt.friction_increase:.1f} %"))
     results, screw = run_whole_screw(cfg, n_steps=n_steps)
     summary = summarize(results, screw.separation)
     write_outputs(results, summary, screw.separation, screw.loop, Path(out_dir))
     amp = math.degrees(cfg.errors.theta_amplitude_rad)
     rows += [
-        _row("Fig. 21 peak B2B torque / ball-groove torque", 49.6,
+        _row("Fig. 21 peak B2B torque / ball-groove torque", paper.B2B_PEAK_SHARE.value,
              100 * summary["peak_b2b_share"], "%",
-             f"theta amplitude {amp:g} deg (not given in the paper)", relative=False),
-        _row("Fig. 21 nut angle of the B2B peak", 126.0, summary["peak_b2b_nut_angle_deg"],
-             "deg", "", relative=False),
-        _row("Fig. 21 nut angle where B2B torque returns to 0", 306.0,
+             f"theta amplitude {amp:g} deg (not given in the paper)", relative=False,
+             check=paper.B2B_PEAK_SHARE),
+        _row("Fig. 21 nut angle of the B2B peak", paper.B2B_PEAK_NUT_ANGLE.value,
+             summary["peak_b2b_nut_angle_deg"], "deg", "", relative=False,
+             check=paper.B2B_PEAK_NUT_ANGLE),
+        _row("Fig. 21 nut angle where B2B torque returns to 0", paper.B2B_ZERO_NUT_ANGLE.value,
              summary["b2b_zero_nut_angle_deg"], "deg", "first step after the peak",
-             relative=False),
-        _row("Fig. 20 number of B2B groups", 4, summary["max_groups"], "1", "maximum",
-             relative=False),
+             relative=False, check=paper.B2B_ZERO_NUT_ANGLE),
+        _row("Fig. 20 number of B2B groups", paper.B2B_GROUPS.value, summary["max_groups"],
+             "1", "maximum", relative=False, check=paper.B2B_GROUPS),
         _row("Fig. 21 ball-groove torque variation (max-min)/mean", None,
              100 * summary["b2g_torque_variation"], "%", "paper: 'barely has variation'"),
         _row("Sec. 3.4 max power balance error", 0.0, summary["max_power_balance_error"],
-             "1", "every step", relative=False),
+             "1", "every step", relative=False),        # 0.0: a physical law, as above
         _row("Sec. 3.4 median step time", None, summary["step_time_median_s"], "s",
              f"{len(results)} steps, all converged: {summary['all_converged']}"),
     ]

@@ -7,6 +7,14 @@ start therefore solves one ball with theta = 0 at a reference load per ball, con
 load (displacements scale as W^(2/3)) to the actual load, copies the state to every ball and
 continues theta (and the lead errors) from zero to their actual values with all balls
 coupled.  Every continuation step is a converged Newton solve.
+
+References
+----------
+.. [1] Lin, B., Duan, M., Okwudire, C. E., 2019, "Analytical and Low-Order Numerical Modeling
+   of Ball-to-Ball Contact Friction in Linear Ball Bearings and Ball Screws", ASME J. Tribol.
+   141(8), DOI 10.1115/1.4043630.
+   Eqs. (53)-(55), Table 4.
+
 """
 
 import math
@@ -34,11 +42,11 @@ class ScrewModel:
         delta = max(b.r_groove - b.r_b - b.free_distance, 0.0)
         return float(b.k_load[0] * delta ** 1.5)
 
-    def force_scale(self, n_balls, load_w):
+    def force_scale(self, n_balls, axial_load_n):
         """Residual force scale [N]: the larger of the mean axial load per ball and preload."""
-        return max(abs(load_w) / n_balls, self.preload_load())
+        return max(abs(axial_load_n) / n_balls, self.preload_load())
 
-    def cold_start(self, n_balls, sign, load_w):
+    def cold_start(self, n_balls, sign, axial_load_n):
         """
         Start state: rolling on the diagonal that carries W, with its Hertz approach.
 
@@ -47,15 +55,15 @@ class ScrewModel:
         b = self.ball
         x = b.rolling_guess(n_balls, sign)
         sb, cb = math.sin(b.beta0), math.cos(b.beta0)
-        q0 = abs(load_w) / (n_balls * b.cos_a * sb)
+        q0 = abs(axial_load_n) / (n_balls * b.cos_a * sb)
         delta = (q0 / b.k_load[0]) ** (2.0 / 3.0)
-        side = 1.0 if load_w >= 0.0 else -1.0
+        side = 1.0 if axial_load_n >= 0.0 else -1.0
         x[:, 0] = -delta * cb / LENGTH_SCALE_M
         x[:, 1] = -side * delta * sb / LENGTH_SCALE_M
         u = -side * 2.0 * delta / (b.cos_a * sb) / LENGTH_SCALE_M
         return x, u
 
-    def cold_solve(self, theta, screw_shift_m, nut_shift_m, sign, load_w):
+    def cold_solve(self, theta, screw_shift_m, nut_shift_m, sign, axial_load_n):
         """
         Free balls (no B2B) for per-ball theta and profile shifts, from scratch.
 
@@ -67,7 +75,7 @@ class ScrewModel:
         n = theta.size
         none = np.zeros(0, dtype=int)
         zero_set = np.zeros(0, dtype=bool)
-        w_ref = math.copysign(st.cold_start_ball_load_n, load_w)
+        w_ref = math.copysign(st.cold_start_ball_load_n, axial_load_n)
         centres0 = self.ball.arc_centres(np.zeros(1), 0.0, 0.0)
         x, u = self.cold_start(1, sign, w_ref)
         sol = self.solver.solve(x, u, centres0, sign, w_ref, self.force_scale(1, w_ref),
@@ -75,7 +83,7 @@ class ScrewModel:
         if not sol.converged:
             sol = self.solver.cold_solve(x, u, centres0, sign, w_ref,
                                          self.force_scale(1, w_ref))
-        target = load_w / n
+        target = axial_load_n / n
         current = w_ref
         while sol.converged and current != target:
             ratio = target / current
@@ -89,16 +97,20 @@ class ScrewModel:
             sol = self.solver.solve(x, u, centres0, sign, current,
                                     self.force_scale(1, current), none, none, zero_set)
         if not sol.converged:
+            # Still one ball's state: give each of the n balls a copy, so that a caller's
+            # next solve gets arrays of its own size (the compiled kernel does not check
+            # bounds; a one-row state read as n rows was undefined memory, issue 13 #8).
+            sol.x = np.repeat(sol.x, n, axis=0)
             return sol
         x, u = np.repeat(sol.x, n, axis=0), sol.u
         screw_shift = np.broadcast_to(np.asarray(screw_shift_m, dtype=float), (n,))
         nut_shift = np.broadcast_to(np.asarray(nut_shift_m, dtype=float), (n,))
         steps = max(1, int(math.ceil(np.abs(theta).max() / st.continuation_theta_step_rad)))
-        scale = self.force_scale(n, load_w)
+        scale = self.force_scale(n, axial_load_n)
         for k in range(1, steps + 1):
             lam = k / steps
             centres = self.ball.arc_centres(lam * theta, lam * screw_shift, lam * nut_shift)
-            sol = self.solver.solve(x, u, centres, sign, load_w, scale, none, none, zero_set)
+            sol = self.solver.solve(x, u, centres, sign, axial_load_n, scale, none, none, zero_set)
             if not sol.converged:
                 break
             x, u = sol.x, sol.u

@@ -6,6 +6,14 @@ torque_total_nm, torque_b2g_nm, torque_b2b_nm, n_groups, drive_power_w, loss_w, 
 converged), ``summary.json`` (peak_b2b_share, peak_b2b_nut_angle_deg, max_groups,
 step_time_median_s, max_power_balance_error, ...), ``fig20_ball_distance.png`` and
 ``fig21_torque_split.png``.
+
+References
+----------
+.. [1] Lin, B., Duan, M., Okwudire, C. E., 2019, "Analytical and Low-Order Numerical Modeling
+   of Ball-to-Ball Contact Friction in Linear Ball Bearings and Ball Screws", ASME J. Tribol.
+   141(8), DOI 10.1115/1.4043630.
+   Sec. 3.4, Figs. 20-21.
+
 """
 
 import csv
@@ -22,18 +30,54 @@ TIMESERIES_COLUMNS = ("t_s", "nut_angle_rad", "torque_total_nm", "torque_b2g_nm"
 
 
 def run_whole_screw(config, n_steps=None, screw=None):
-    """Sec. 3.4: constant omega_N and W for ``duration_s`` in ``n_steps`` steps."""
+    """
+    Sec. 3.4: constant omega_N and W for ``duration_s`` in ``n_steps`` steps.
+
+    Parameters
+    ----------
+    config : BallScrewConfig
+        Screw and operating point (``operation.nut_velocity_rad_s`` [rad/s],
+        ``axial_load_n`` [N], ``duration_s`` [s], ``n_steps``).
+    n_steps : int, optional
+        Run only the first ``n_steps`` steps (same step length).
+    screw : WholeScrew, optional
+        A screw to reuse (its friction maps are built once); it is reset.
+
+    Returns
+    -------
+    (list of StepResult, WholeScrew)
+        One result per step (torques [N m], powers [W], ball states) and the screw.
+
+    """
     op = config.operation
     steps = op.n_steps if n_steps is None else int(n_steps)
     dt = op.duration_s / op.n_steps
     screw = WholeScrew(config) if screw is None else screw
     screw.reset(0.0)
-    return [screw.step(op.nut_speed_rad_s * k * dt, op.nut_speed_rad_s, op.axial_load_n, dt)
+    return [screw.step(op.nut_velocity_rad_s * k * dt, op.nut_velocity_rad_s, op.axial_load_n, dt)
             for k in range(1, steps + 1)], screw
 
 
 def summarize(results, separation_rad):
-    """Figures of merit of a run (Fig. 21's peak B2B share and where B2B vanishes)."""
+    """
+    Figures of merit of a run (Fig. 21's peak B2B share and where B2B vanishes).
+
+    Parameters
+    ----------
+    results : list of StepResult
+        The steps of a run.
+    separation_rad : float
+        Azimuth separation of two touching balls  [rad].
+
+    Returns
+    -------
+    dict
+        ``peak_b2b_share`` (T_b2b / T_b2g, fraction), ``peak_b2b_nut_angle_deg``,
+        ``b2b_zero_nut_angle_deg`` [deg], ``max_groups``, ``step_time_median_s`` [s],
+        ``max_power_balance_error`` [1], ``all_converged``, ``b2g_torque_variation``
+        (fraction) and more.
+
+    """
     angle = np.degrees([r.nut_angle_rad for r in results])
     b2g = np.array([r.torque_b2g_nm for r in results])
     b2b = np.array([r.torque_b2b_nm for r in results])
@@ -59,11 +103,10 @@ def summarize(results, separation_rad):
 
 def plot_fig20(results, separation_rad, loop_rad, path):
     """Fig. 20: angular distance between neighbouring balls; B2B contact as black dots."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
     angle = np.degrees([r.nut_angle_rad for r in results])
-    fig, ax = plt.subplots(figsize=(8, 4.5))
+    fig = Figure(figsize=(8, 4.5))
+    ax = fig.subplots()
     dist = []
     touch = []
     for r in results:
@@ -84,16 +127,14 @@ def plot_fig20(results, separation_rad, loop_rad, path):
     ax.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
 
 
 def plot_fig21(results, path):
     """Fig. 21: total friction torque and its ball-groove and B2B parts."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
     angle = np.degrees([r.nut_angle_rad for r in results])
-    fig, ax = plt.subplots(figsize=(8, 4.5))
+    fig = Figure(figsize=(8, 4.5))
+    ax = fig.subplots()
     ax.plot(angle, [1e3 * r.torque_total_nm for r in results], "k", label="total")
     ax.plot(angle, [1e3 * r.torque_b2g_nm for r in results], "b", label="ball-groove")
     ax.plot(angle, [1e3 * r.torque_b2b_nm for r in results], "r", label="ball-to-ball")
@@ -103,7 +144,6 @@ def plot_fig21(results, path):
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
 
 
 def write_outputs(results, summary, separation_rad, loop_rad, out_dir):

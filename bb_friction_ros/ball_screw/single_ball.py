@@ -23,6 +23,14 @@ Y = y_3 (rolling), X = Y x n (across the groove), Z = n.  In it (Eq. 44 without 
     V_Y = w_B l + R_B (Omega_z n_x - Omega_x n_z) - g s (l + R_B cos(alpha) n_x)
     w   = Omega_x n_x + Omega_z n_z - g s cos(alpha) n_z
 with l = L / 2pi and g = 1 on the nut, 0 on the screw.
+
+References
+----------
+.. [1] Lin, B., Duan, M., Okwudire, C. E., 2019, "Analytical and Low-Order Numerical Modeling
+   of Ball-to-Ball Contact Friction in Linear Ball Bearings and Ball Screws", ASME J. Tribol.
+   141(8), DOI 10.1115/1.4043630.
+   Eqs. (34)-(55), (A9)-(A11), Figs. 13-14.
+
 """
 
 import math

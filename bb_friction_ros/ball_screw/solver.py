@@ -26,6 +26,14 @@ Both stop at the same residual tolerance and use the same trust region and line 
 Complementarity (Eq. 61) is solved exactly by an active set: a contact with a negative force
 is released, a touching inactive pair whose rear ball orbits faster is closed, until neither
 happens.
+
+References
+----------
+.. [1] Lin, B., Duan, M., Okwudire, C. E., 2019, "Analytical and Low-Order Numerical Modeling
+   of Ball-to-Ball Contact Friction in Linear Ball Bearings and Ball Screws", ASME J. Tribol.
+   141(8), DOI 10.1115/1.4043630.
+   Eqs. (54)-(61).
+
 """
 
 from dataclasses import dataclass, field
@@ -108,7 +116,7 @@ class EquilibriumSolver:
         return self.ball.hertz[0].coef_delta_m_per_n23 * max(float(load_n), 0.0) \
             ** (2.0 / 3.0) / LENGTH_SCALE_M
 
-    def _residual(self, x, u, f_hat, centres, sign, load_w, scale, rear, front, jac):
+    def _residual(self, x, u, f_hat, centres, sign, axial_load_n, scale, rear, front, jac):
         """Scaled residuals and the Jacobian pieces for a fixed active set."""
         t = self.ball.evaluate(x, u, centres, sign, jacobian=jac,
                                extra_oversize_m=self.extra_oversize_m)
@@ -119,7 +127,7 @@ class EquilibriumSolver:
             g_rear, g_front, speed = self.b2b.unit_terms(x[rear], x[front], sign)
             np.add.at(res, rear, g_rear * f_hat[:, None])
             np.add.at(res, front, g_front * f_hat[:, None])
-        axial = (t["axial"].sum() + load_w) / scale
+        axial = (t["axial"].sum() + axial_load_n) / scale
         cons = x[rear, 2] - x[front, 2]
         return t, res, axial, cons, g_rear, g_front, speed
 
@@ -171,7 +179,7 @@ class EquilibriumSolver:
             dx[front] += sol[front, :, 3] * df[:, None]
         return -dx, du, df
 
-    def _stage_geometry(self, x, u, centres, sign, load_w, scale):
+    def _stage_geometry(self, x, u, centres, sign, axial_load_n, scale):
         """
         Cold-start stage: move balls and nut to balance the cross-section forces.
 
@@ -185,7 +193,7 @@ class EquilibriumSolver:
         for _ in range(st.max_iterations):
             t = self.ball.evaluate(x, u, centres, sign, True, self.extra_oversize_m)
             res = t["force"][:, rows] / scale
-            axial = (t["axial"].sum() + load_w) / scale
+            axial = (t["axial"].sum() + axial_load_n) / scale
             if max(np.abs(res).max(), abs(axial)) <= st.tolerance:
                 break
             jac = t["d_force"][:, rows, :] / scale
@@ -221,20 +229,27 @@ class EquilibriumSolver:
             x[:, cols] += dx / big if big > 1.0 else dx
         return x
 
-    def cold_solve(self, x, u, centres, sign, load_w, scale, sweeps=3):
+    def cold_solve(self, x, u, centres, sign, axial_load_n, scale, sweeps=3):
         """Free balls (no B2B) from a rough start: alternate the two stages, then Newton."""
         for _ in range(sweeps):
-            x, u = self._stage_geometry(x, u, centres, sign, load_w, scale)
+            x, u = self._stage_geometry(x, u, centres, sign, axial_load_n, scale)
             x = self._stage_rates(x, u, centres, sign, scale)
         none = np.zeros(0, dtype=int)
-        return self.solve(x, u, centres, sign, load_w, scale, none, none,
+        return self.solve(x, u, centres, sign, axial_load_n, scale, none, none,
                           np.zeros(0, dtype=bool))
 
-    def _solve_active_kernel(self, x, u, f_hat, centres, sign, load_w, scale, rear, front,
+    def _solve_active_kernel(self, x, u, f_hat, centres, sign, axial_load_n, scale, rear, front,
                              max_iterations):
         """``solve_active`` through the compiled kernel (``kernel.solve_active``)."""
         st = self.settings
         b = self.ball
+        # The kernel does not check bounds: refuse mismatched arrays here rather than read
+        # memory that is not theirs (which made results differ from run to run).
+        n = np.shape(x)[0]
+        if np.shape(centres)[0] != n or (np.size(rear) and max(np.max(rear), np.max(front))
+                                         >= n) or np.size(f_hat) != np.size(rear):
+            raise ValueError(f"solve_active: {n} ball states, {np.shape(centres)[0]} "
+                             f"centres, {np.size(rear)} pairs, {np.size(f_hat)} forces")
         cst = self._cst.get(self.extra_oversize_m)
         if cst is None:
             cst = np.array([LENGTH_SCALE_M, b.r_b, b.cos_a, b.sin_a, b.ell, b.mu,
@@ -247,7 +262,7 @@ class EquilibriumSolver:
             np.ascontiguousarray(f_hat, dtype=float),
             np.ascontiguousarray(centres, dtype=float), float(sign), cst, self._k_load,
             self._k_axis, self._on_nut, self._coef[0], self._coef[1], self._grid,
-            float(scale), float(load_w), np.ascontiguousarray(rear, dtype=np.int64),
+            float(scale), float(axial_load_n), np.ascontiguousarray(rear, dtype=np.int64),
             np.ascontiguousarray(front, dtype=np.int64), *self.b2b.linear_terms(sign),
             float(st.tolerance), int(max_iterations), float(st.max_step_rate),
             float(disp_limit))
@@ -256,16 +271,16 @@ class EquilibriumSolver:
              "contact_loss": per_contact[..., 1], "angle": per_contact[..., 2]}
         return x, u, f_hat, bool(ok), int(it), float(norm), t, speed
 
-    def solve_active(self, x, u, f_hat, centres, sign, load_w, scale, rear, front,
+    def solve_active(self, x, u, f_hat, centres, sign, axial_load_n, scale, rear, front,
                      max_iterations=None):
         """Newton iterations for one active set; returns (x, u, f_hat, ok, it, res, t, sp)."""
         st = self.settings
         max_it = st.max_iterations if max_iterations is None else max_iterations
         if self.use_kernel:
-            return self._solve_active_kernel(x, u, f_hat, centres, sign, load_w, scale, rear,
+            return self._solve_active_kernel(x, u, f_hat, centres, sign, axial_load_n, scale, rear,
                                              front, max_it)
         n = x.shape[0]
-        t, res, axial, cons, gr, gf, sp = self._residual(x, u, f_hat, centres, sign, load_w,
+        t, res, axial, cons, gr, gf, sp = self._residual(x, u, f_hat, centres, sign, axial_load_n,
                                                          scale, rear, front, True)
         norm = max(np.abs(res).max(), abs(axial), np.abs(cons).max() if cons.size else 0.0)
         it = 0
@@ -280,7 +295,7 @@ class EquilibriumSolver:
             step = 1.0 / big if big > 1.0 else 1.0
             for _ in range(12):
                 xn, un, fn = x + step * dx, u + step * du, f_hat + step * df
-                out = self._residual(xn, un, fn, centres, sign, load_w, scale, rear, front,
+                out = self._residual(xn, un, fn, centres, sign, axial_load_n, scale, rear, front,
                                      True)
                 nn = max(np.abs(out[1]).max(), abs(out[2]),
                          np.abs(out[3]).max() if out[3].size else 0.0)
@@ -292,7 +307,7 @@ class EquilibriumSolver:
             norm = nn
         return x, u, f_hat, bool(norm <= st.tolerance), it, norm, t, sp
 
-    def solve(self, x, u, centres, sign, load_w, scale, pair_rear, pair_front, active,
+    def solve(self, x, u, centres, sign, axial_load_n, scale, pair_rear, pair_front, active,
               f_guess=None, max_total_iterations=None):
         """
         Equilibrium with exact B2B complementarity over the candidate (touching) pairs.
@@ -316,7 +331,7 @@ class EquilibriumSolver:
             left = None if max_total_iterations is None else \
                 max(int(max_total_iterations) - total_it, 0)
             x, u, f_hat, ok, it, norm, t, sp = self.solve_active(
-                x, u, f0, centres, sign, load_w, scale, rear, front,
+                x, u, f0, centres, sign, axial_load_n, scale, rear, front,
                 st.max_iterations if left is None else min(st.max_iterations, left))
             total_it += it
             f_all = np.zeros(pair_rear.size)

@@ -37,6 +37,14 @@ Real-time mode (``solver.realtime_max_iterations`` > 0, default 0 = off) caps th
 iterations of a warm step.  When the cap stops the solve, the step returns its last iterate
 with ``converged = False`` (never silently), keeps it as the state and continues from it at
 the next step.  A cold start is never cut short.
+
+References
+----------
+.. [1] Lin, B., Duan, M., Okwudire, C. E., 2019, "Analytical and Low-Order Numerical Modeling
+   of Ball-to-Ball Contact Friction in Linear Ball Bearings and Ball Screws", ASME J. Tribol.
+   141(8), DOI 10.1115/1.4043630.
+   Sec. 3.4, Eq. (61), Figs. 19-21.
+
 """
 
 import math
@@ -161,18 +169,42 @@ class WholeScrew:
         return kernel.ring_pairs(self.azimuth, self.separation, self.loop,
                                  self.config.solver.gap_tolerance_rad, float(sign))
 
-    def _zero_result(self, omega_n, load_w, dt_s):
+    def _zero_result(self, omega_n, axial_load_n, dt_s):
         """No motion or no load: zero friction, state kept."""
         return StepResult(
             t_s=self.time, nut_angle_rad=self.nut_angle, nut_velocity_rad_s=omega_n,
-            axial_load_n=load_w, torque_total_nm=0.0, torque_b2g_nm=0.0, torque_b2b_nm=0.0,
+            axial_load_n=axial_load_n, torque_total_nm=0.0, torque_b2g_nm=0.0, torque_b2b_nm=0.0,
             drive_power_w=0.0, loss_w=0.0, converged=True, power_balance_error=0.0,
             azimuth_rad=self.track_azimuth(), theta_rad=self._centres(
                 self.track_azimuth())[0], omega_b_rad_s=self.ratio * omega_n,
             loads_n=np.zeros((self.n, 4)), b2b_forces_n=np.zeros(self.n))
 
     def step(self, nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s):
-        """Advance the balls to the measured nut angle and solve the equilibrium there."""
+        """
+        Advance the balls to the measured nut angle and solve the equilibrium there.
+
+        Parameters
+        ----------
+        nut_angle_rad : float
+            Measured nut angle  [rad]; the balls advance by their orbit ratio times its
+            increment, so the nut may reverse or change speed.
+        nut_velocity_rad_s : float
+            Signed nut angular velocity omega_N  [rad/s]; its sign sets the direction of
+            friction, 0 gives zero friction and keeps the state.
+        axial_load_n : float
+            Axial load W, force of the balls on the nut along +z (W > 0 opposes
+            omega_N > 0)  [N].
+        dt_s : float
+            Time since the previous step  [s].
+
+        Returns
+        -------
+        StepResult
+            Friction torque T_f = T_nut - W p / 2pi and its ball-groove and B2B parts
+            [N m], drive power omega_N T_f and total loss [W], ball azimuths [rad], orbit
+            rates [rad/s], contact loads [N], B2B contact groups, convergence.
+
+        """
         t0 = time.perf_counter()
         d_psi = float(nut_angle_rad) - self.nut_angle
         self.nut_angle = float(nut_angle_rad)
@@ -180,18 +212,18 @@ class WholeScrew:
         self.azimuth = isotonic_ring_projection(self.azimuth + self.ratio * d_psi,
                                                 self.separation, self.loop)
         omega_n = float(nut_velocity_rad_s)
-        load_w = float(axial_load_n)
+        axial_load_n = float(axial_load_n)
         preload = self.model.preload_load() > 0.0
         if omega_n == 0.0 or (not preload
-                              and abs(load_w) <= self.config.solver.min_axial_load_n):
+                              and abs(axial_load_n) <= self.config.solver.min_axial_load_n):
             self._prev = None
-            return self._zero_result(omega_n, load_w, dt_s)
+            return self._zero_result(omega_n, axial_load_n, dt_s)
         sign = 1.0 if omega_n > 0.0 else -1.0
         phi = self.track_azimuth()
         theta, centres, shifts = self._centres(phi)
         pair_idx, rear, front = self._pairs(sign)
-        scale = self.model.force_scale(self.n, load_w)
-        load_sign = 1.0 if load_w >= 0.0 else -1.0
+        scale = self.model.force_scale(self.n, axial_load_n)
+        load_sign = 1.0 if axial_load_n >= 0.0 else -1.0
         sol = None
         prev = None
         iterations = 0
@@ -204,7 +236,7 @@ class WholeScrew:
                 # ball is predicted faster (the active-set loop corrects either guess).
                 faster = gx[rear, 2] * sign > gx[front, 2] * sign
                 active = (self._active[pair_idx] & (gf[pair_idx] > 0.0)) | faster
-                sol = self.model.solver.solve(gx, gu, centres, sign, load_w, scale, rear,
+                sol = self.model.solver.solve(gx, gu, centres, sign, axial_load_n, scale, rear,
                                               front, active, gf[pair_idx], budget)
                 iterations += sol.iterations
                 if sol.converged or sol.budget_exhausted:
@@ -212,15 +244,15 @@ class WholeScrew:
                     prev = (x, u, self._forces, d_psi)
                     break
         if sol is None or not (sol.converged or sol.budget_exhausted):
-            free = self.model.cold_solve(*shifts, sign, load_w)
+            free = self.model.cold_solve(*shifts, sign, axial_load_n)
             ratio = free.x[:, 2] * sign
-            sol = self.model.solver.solve(free.x, free.u, centres, sign, load_w, scale, rear,
+            sol = self.model.solver.solve(free.x, free.u, centres, sign, axial_load_n, scale, rear,
                                           front, ratio[rear] > ratio[front])
             sol.converged = sol.converged and free.converged
             iterations += sol.iterations
         sol.iterations = iterations
         self._prev = prev
-        return self._finish(sol, sign, omega_n, load_w, theta, phi, pair_idx, rear, front,
+        return self._finish(sol, sign, omega_n, axial_load_n, theta, phi, pair_idx, rear, front,
                             t0)
 
     def _guesses(self, d_psi):
@@ -243,10 +275,10 @@ class WholeScrew:
         out.append((x.copy(), u, self._forces))
         return out
 
-    def _finish(self, sol, sign, omega_n, load_w, theta, phi, pair_idx, rear, front, t0):
+    def _finish(self, sol, sign, omega_n, axial_load_n, theta, phi, pair_idx, rear, front, t0):
         """Store the state and build the StepResult."""
         b = self.model.ball
-        self._state = (sol.x, sol.u, sign, 1.0 if load_w >= 0.0 else -1.0)
+        self._state = (sol.x, sol.u, sign, 1.0 if axial_load_n >= 0.0 else -1.0)
         self.ratio = sol.x[:, 2] * sign
         self._active = np.zeros(self.n, dtype=bool)
         self._active[pair_idx] = sol.active
@@ -256,7 +288,7 @@ class WholeScrew:
         groove_loss = float(sol.terms["loss"].sum()) * abs_w
         b2b_loss = float(b.mu * np.dot(sol.forces, sol.b2b_speed)) * abs_w \
             if pair_idx.size else 0.0
-        torque = float(sol.terms["nut_torque"].sum()) - load_w * b.r_gear
+        torque = float(sol.terms["nut_torque"].sum()) - axial_load_n * b.r_gear
         loss = groove_loss + b2b_loss
         drive = omega_n * torque
         groups = []
@@ -275,7 +307,7 @@ class WholeScrew:
             groups.append((tuple(chain_ids), tuple(chain_f)))
         return StepResult(
             t_s=self.time, nut_angle_rad=self.nut_angle, nut_velocity_rad_s=omega_n,
-            axial_load_n=load_w, torque_total_nm=torque,
+            axial_load_n=axial_load_n, torque_total_nm=torque,
             torque_b2g_nm=groove_loss / omega_n, torque_b2b_nm=b2b_loss / omega_n,
             drive_power_w=drive, loss_w=loss, converged=bool(sol.converged),
             power_balance_error=abs(drive - loss) / max(loss, _TINY),

@@ -22,6 +22,15 @@ is constant on each ray); only the angle is integrated numerically.  Tables are 
 ellipticity and cached on disk; between nodes we interpolate with cubic Hermite polynomials
 (own implementation: scipy's interpolators cost ~30 us per call, which would be most of the
 1 ms budget of a two-ball solve).
+
+References
+----------
+.. [1] Lin, B., Duan, M., Okwudire, C. E., 2019, "Analytical and Low-Order Numerical Modeling
+   of Ball-to-Ball Contact Friction in Linear Ball Bearings and Ball Screws", ASME J. Tribol.
+   141(8), DOI 10.1115/1.4043630.
+   Eqs. (A4)-(A7) (force, moment, loss over the ellipse), Eqs. (11)-(12) (limits), Fig. 5
+   and Sec. 2.3.1 (k_f).
+
 """
 
 import hashlib
@@ -59,13 +68,44 @@ def _ray_integrals_inside(p, e):
     return k1, k2
 
 
-def _rate_direction_integrals(vx, vy, w, k, n_inside=1024, n_outside=96):
+_BUILD_CHUNK = 1024     # rate directions integrated at once while a table is built
+_N_INSIDE = 1024        # quadrature rays of a velocity centre inside the contact
+
+# Memory of a table's build, estimated up front so a too-fine map is refused before it
+# starts (issue 13 #20).  Peaks measured with tracemalloc (line maps of 65 536 and 262 144
+# nodes: 139 and 154 MB; sphere map 640 x 512: 409 MB), rounded up: one chunk's quadrature
+# temporaries (about 16 arrays of chunk x rays floats) plus a cost per node.
+_CHUNK_BYTES = 16 * 8 * _BUILD_CHUNK * _N_INSIDE
+_LINE_NODE_BYTES = 400      # values, slopes, the spline's coefficients and their temporaries
+_SPHERE_NODE_BYTES = 1024   # 4 tables (128 B), cell coefficients (512 B), their temporaries
+
+
+def line_map_bytes(n_nodes):
+    """Return the peak memory [bytes] of building a FrictionMapLine of ``n_nodes``."""
+    return _CHUNK_BYTES + _LINE_NODE_BYTES * int(n_nodes)
+
+
+def sphere_map_bytes(n_polar, n_azimuth):
+    """Return the peak memory [bytes] of building a FrictionMapSphere (per map)."""
+    return _CHUNK_BYTES + _SPHERE_NODE_BYTES * (int(n_polar) + 1) * int(n_azimuth)
+
+
+def _rate_direction_integrals(vx, vy, w, k, n_inside=_N_INSIDE, n_outside=96):
     """
     Normalised (fX, fY, m, p) for rate directions (vx, vy, w) with vx^2+vy^2+w^2 = 1.
 
     vx, vy are V/a; arrays of equal shape.  Pure sliding (w = 0) is the exact limit.
     """
     vx, vy, w = (np.asarray(t, dtype=float).ravel() for t in (vx, vy, w))
+    if vx.size > _BUILD_CHUNK:
+        # Every direction is integrated on its own, and the quadrature temporaries cost
+        # ~64 kB per direction: a table is built in chunks, so its build needs memory for
+        # the table, not for n x n_inside temporaries (issue 13 #20).  Same numbers.
+        return np.concatenate([_rate_direction_integrals(vx[i:i + _BUILD_CHUNK],
+                                                         vy[i:i + _BUILD_CHUNK],
+                                                         w[i:i + _BUILD_CHUNK], k, n_inside,
+                                                         n_outside)
+                               for i in range(0, vx.size, _BUILD_CHUNK)], axis=1)
     out = np.zeros((4, vx.size))
     sgn = np.where(w < 0, -1.0, 1.0)
     # (V, w) -> -(V, w) flips the traction: compute with w >= 0, restore the sign after.

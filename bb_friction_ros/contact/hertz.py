@@ -4,6 +4,16 @@ Hertz contact of a ball on a grooved body: exact elliptic solution (Johnson, Con
 All quantities SI: m, N, Pa.  The contact ellipse has semi-axis ``a`` along the direction of
 smaller relative curvature (across a conforming groove) and ``b`` along the other
 (the rolling direction), ``b <= a``.
+
+References
+----------
+.. [1] Lin, B., Duan, M., Okwudire, C. E., 2019, "Analytical and Low-Order Numerical Modeling
+   of Ball-to-Ball Contact Friction in Linear Ball Bearings and Ball Screws", ASME J. Tribol.
+   141(8), DOI 10.1115/1.4043630.
+   Eq. (15) and Table 1 (Psi), Eq. (53) (load from approach), Eq. (A7) (peak pressure).
+.. [2] Johnson, K. L., 1985, Contact Mechanics, Cambridge University Press (the paper's
+   ref. [20]): the elliptical Hertz contact.
+
 """
 
 from dataclasses import dataclass
@@ -70,14 +80,45 @@ class HertzContact:
     @classmethod
     def ball_in_straight_groove(cls, ball_radius_m, conformity, youngs_modulus_pa,
                                 poisson_ratio):
-        """Ball in a circular-arc groove of radius 2*conf*R_B on a straight rail (Table 1)."""
+        """
+        Ball in a circular-arc groove of radius 2 conf R_B on a straight rail (Table 1).
+
+        Parameters
+        ----------
+        ball_radius_m : float
+            Ball radius R_B  [m].
+        conformity : float
+            Groove radius / ball diameter, > 0.5  [1].
+        youngs_modulus_pa : float
+            Young's modulus of ball and groove (same steel)  [Pa].
+        poisson_ratio : float
+            Poisson's ratio  [1].
+
+        Returns
+        -------
+        HertzContact
+
+        """
         groove_radius = 2.0 * conformity * ball_radius_m
         return cls.from_curvatures(1.0 / ball_radius_m - 1.0 / groove_radius,
                                    1.0 / ball_radius_m,
                                    effective_modulus(youngs_modulus_pa, poisson_ratio))
 
     def psi(self, ball_radius_m):
-        """Psi of Eq. (15): a = Psi R_B^(1/3) F^(1/3)  [(m^2/N)^(1/3)]."""
+        """
+        Psi of Eq. (15): a = Psi R_B^(1/3) F^(1/3).
+
+        Parameters
+        ----------
+        ball_radius_m : float
+            Ball radius R_B  [m].
+
+        Returns
+        -------
+        float
+            Psi  [(m^2/N)^(1/3)]; Table 1 prints 5.307e-4 (``paper.PSI``).
+
+        """
         return self.coef_a_m_per_n13 / ball_radius_m ** (1.0 / 3.0)
 
     def semi_axes(self, load_n):

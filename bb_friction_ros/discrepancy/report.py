@@ -202,31 +202,30 @@ def _layout(fig):
 
 def plot_all(out, a):
     """Write the three figures of the report."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
     x = inputs_of(a.recording)
-    fig, axes = plt.subplots(2, 3, figsize=(15, 7))
+    fig = Figure(figsize=(15, 7))
+    axes = fig.subplots(2, 3)
     _panels(axes.ravel(), x, [a.residual_nm], ["residual (measured - predicted)"], ["0.5"],
             a.bins, a.regions_before)
     fig.suptitle("Where: residual before (bars: regime means, red = significant)")
     _layout(fig)
     fig.savefig(out / FIGURES[0], dpi=100)
-    plt.close(fig)
 
     hold = ~a.fit_mask
     xh = inputs_of(a.recording, hold)
-    fig, axes = plt.subplots(2, 3, figsize=(15, 7))
+    fig = Figure(figsize=(15, 7))
+    axes = fig.subplots(2, 3)
     _panels(axes.ravel(), xh, [a.residual_nm[hold], (a.residual_nm - a.added_nm)[hold]],
             ["before", "after (with the selected terms)"], ["0.6", "C0"])
     fig.suptitle(f"Held-out part: RMSE {a.rmse_before_nm:.4g} -> {a.rmse_after_nm:.4g} N m")
     _layout(fig)
     fig.savefig(out / FIGURES[1], dpi=100)
-    plt.close(fig)
 
     rec = a.recording
     t = rec.t_s - rec.t_s[0]
-    fig, axes = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
+    fig = Figure(figsize=(11, 7))
+    axes = fig.subplots(2, 1, sharex=True)
     axes[0].plot(t, rec.torque_meas_nm, lw=0.6, color="0.5", label="measured")
     axes[0].plot(t, rec.torque_pred_nm, lw=0.9, label="model")
     axes[0].plot(t, rec.torque_pred_nm + a.added_nm, lw=0.9, label="model + empirical terms")
@@ -243,15 +242,15 @@ def plot_all(out, a):
     axes[0].set_title("fit part | held-out part (right of the dashed line)")
     _layout(fig)
     fig.savefig(out / FIGURES[2], dpi=100)
-    plt.close(fig)
 
 
 def plot_validation(out, v):
     """Write ``validation.png``: measured, model and model + terms on the second recording."""
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
     rec = v.recording
     t = rec.t_s - rec.t_s[0]
-    fig, axes = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
+    fig = Figure(figsize=(11, 7))
+    axes = fig.subplots(2, 1, sharex=True)
     axes[0].plot(t, rec.torque_meas_nm, lw=0.6, color="0.5", label="measured")
     axes[0].plot(t, rec.torque_pred_nm, lw=0.9, label="model")
     axes[0].plot(t, rec.torque_pred_nm + v.added_nm, lw=0.9, label="model + terms (no refit)")
@@ -270,4 +269,3 @@ def plot_validation(out, v):
         ax.legend(fontsize=8, loc="upper right")
     _layout(fig)
     fig.savefig(out / VALIDATION_FIGURE, dpi=100)
-    plt.close(fig)

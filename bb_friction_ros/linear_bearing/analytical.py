@@ -3,6 +3,14 @@ Analytical model of ball velocity and B2B contact, Eqs. (13)-(33); vectorised ov
 
 Every function broadcasts over numpy arrays (e.g. a theta x rho grid).  Angles in rad, forces
 in N, lengths in m.  Contact order BL, BR, TR, TL.
+
+References
+----------
+.. [1] Lin, B., Duan, M., Okwudire, C. E., 2019, "Analytical and Low-Order Numerical Modeling
+   of Ball-to-Ball Contact Friction in Linear Ball Bearings and Ball Screws", ASME J. Tribol.
+   141(8), DOI 10.1115/1.4043630.
+   Eqs. (11), (13)-(33), Secs. 2.3.1-2.3.3.
+
 """
 
 import numpy as np
@@ -55,7 +63,24 @@ def velocity_deviation_eq21(dbeta, d_eta, beta0_rad):
 
 
 def velocity_deviation_eq22(dbeta, f_u_n, f_d_n, beta0_rad):
-    """Eq. (22): epsilon with diagonal loads F_BL = F_TR = F_U and F_BR = F_TL = F_D."""
+    """
+    Eq. (22): ball-velocity deviation epsilon with diagonal loads.
+
+    Parameters
+    ----------
+    dbeta : array_like, shape (..., 4)
+        Contact-angle deviations (BL, BR, TR, TL), Eq. (18)  [rad].
+    f_u_n, f_d_n : array_like
+        Diagonal contact loads F_U = F_BL = F_TR and F_D = F_BR = F_TL  [N].
+    beta0_rad : float
+        Nominal contact angle beta_0  [rad].
+
+    Returns
+    -------
+    ndarray
+        epsilon: v_B = (1 + epsilon) v/2, as a fraction (not %)  [1].
+
+    """
     dbeta = np.asarray(dbeta, dtype=float)
     wu, wd = np.asarray(f_u_n, float) ** (2.0 / 3.0), np.asarray(f_d_n, float) ** (2.0 / 3.0)
     return (1.0 - np.cos(2.0 * beta0_rad)) * (
@@ -64,7 +89,22 @@ def velocity_deviation_eq22(dbeta, f_u_n, f_d_n, beta0_rad):
 
 
 def velocity_deviation_eq33(theta_rad, rho):
-    """Eq. (33): (eps_1, eps_2) of the Sec. 2.4.1 case (beta_0 = 45 deg), N_x1 = rho N_y."""
+    """
+    Eq. (33): velocity deviations of the two balls of the Sec. 2.4.1 case (beta_0 = 45 deg).
+
+    Parameters
+    ----------
+    theta_rad : array_like
+        Bottom-groove deviation theta: dbeta_BL = -theta, dbeta_BR = +theta  [rad].
+    rho : array_like
+        Side force ratio N_x / N_y of ball 1 (ball 2 carries -rho N_y), |rho| < 1  [1].
+
+    Returns
+    -------
+    (ndarray, ndarray)
+        (epsilon_1, epsilon_2), fractions of v/2  [1]; epsilon_2 = -epsilon_1.
+
+    """
     theta, rho = np.asarray(theta_rad, dtype=float), np.asarray(rho, dtype=float)
     r = ((1.0 + rho) / (1.0 - rho)) ** (2.0 / 3.0)
     eps1 = (1.0 - r) / (1.0 + r) * theta / 2.0
@@ -74,10 +114,32 @@ def velocity_deviation_eq33(theta_rad, rho):
 def b2b_force_eq30(eps1, eps2, loads1_ud_n, loads2_ud_n, ball_radius_m, psi, beta0_rad, mu,
                    k_f):
     """
-    Eq. (30): B2B contact force, analytical; zero where ball 1 is not faster  [N].
+    Eq. (30): B2B contact force, analytical; zero where ball 1 is not faster.
 
-    ``loads*_ud_n`` = (F_U, F_D) of each ball, arrays (..., 2).  The gap condition is the
-    caller's (two balls assumed touching).
+    The gap condition is the caller's (the two balls are taken as touching).
+
+    Parameters
+    ----------
+    eps1, eps2 : array_like
+        Velocity deviations of ball 1 (rear) and ball 2 (front), Eq. (22)  [1].
+    loads1_ud_n, loads2_ud_n : array_like, shape (..., 2)
+        (F_U, F_D) of each ball  [N].
+    ball_radius_m : float
+        Ball radius R_B  [m].
+    psi : float
+        Hertz constant Psi of Eq. (15)  [(m^2/N)^(1/3)].
+    beta0_rad : float
+        Nominal contact angle beta_0  [rad].
+    mu : float
+        Coulomb friction coefficient  [1].
+    k_f : float
+        Slope of the linearised friction force, Eq. (14)  [1].
+
+    Returns
+    -------
+    ndarray
+        F_B2B >= 0  [N].
+
     """
     l1, l2 = np.asarray(loads1_ud_n, dtype=float), np.asarray(loads2_ud_n, dtype=float)
     s1 = l1[..., 0] ** (2.0 / 3.0) + l1[..., 1] ** (2.0 / 3.0)
@@ -94,7 +156,26 @@ def b2b_slip_speed_eq31(groove_velocity_m_s, beta0_rad):
 
 
 def b2b_loss_eq32(b2b_force_n, groove_velocity_m_s, beta0_rad, mu):
-    """Eq. (32): B2B friction loss P = mu F v / cos(beta_0)  [W]."""
+    """
+    Eq. (32): B2B friction loss P_fB2B = mu F_B2B v / cos(beta_0).
+
+    Parameters
+    ----------
+    b2b_force_n : array_like
+        B2B contact force F_B2B  [N].
+    groove_velocity_m_s : float
+        Velocity v of the top groove  [m/s].
+    beta0_rad : float
+        Nominal contact angle beta_0  [rad].
+    mu : float
+        Coulomb friction coefficient  [1].
+
+    Returns
+    -------
+    ndarray
+        P_fB2B  [W].
+
+    """
     return mu * np.asarray(b2b_force_n, float) * b2b_slip_speed_eq31(groove_velocity_m_s,
                                                                      beta0_rad)
 

@@ -5,6 +5,14 @@ Setup: the bottom groove deviates by theta (dbeta_BL = -theta, dbeta_BR = +theta
 groove by (dbeta_TR, dbeta_TL).  Ball 1 is behind and carries N_x = +rho N_y, ball 2 in
 front carries -rho N_y, both N_y.  The balls are taken as touching, so B2B contact forms
 exactly when ball 1 is faster (Eq. 9).
+
+References
+----------
+.. [1] Lin, B., Duan, M., Okwudire, C. E., 2019, "Analytical and Low-Order Numerical Modeling
+   of Ball-to-Ball Contact Friction in Linear Ball Bearings and Ball Screws", ASME J. Tribol.
+   141(8), DOI 10.1115/1.4043630.
+   Sec. 2.4.1, Fig. 7, Eq. (33), Tables 1-3, Figs. 8-9.
+
 """
 
 from dataclasses import dataclass
@@ -15,7 +23,7 @@ import numpy as np
 from bb_friction_ros.linear_bearing import analytical as an
 from bb_friction_ros.linear_bearing.geometry import (contact_forces_diagonal,
                                                      contact_forces_rigid,
-                                                     deviated_contact_angles)
+                                                     deviated_contact_angles, outward_normals)
 from bb_friction_ros.linear_bearing.numerical import LinearBearingModel
 
 
@@ -79,7 +87,25 @@ class LinearPairCase:
         return contact_forces_rigid(beta_rad, side_force_n, cfg.vertical_load_n)
 
     def numerical(self, theta_rad, rho, dbeta_tr_rad=0.0, dbeta_tl_rad=0.0):
-        """Low-order numerical model (Eqs. 1-10) of the two-ball case."""
+        """
+        Low-order numerical model (Eqs. 1-10) of the two-ball case.
+
+        Parameters
+        ----------
+        theta_rad : float
+            Bottom-groove deviation theta: dbeta_BL = -theta, dbeta_BR = +theta  [rad].
+        rho : float
+            Side force ratio N_x / N_y of ball 1; ball 2 carries -rho N_y  [1].
+        dbeta_tr_rad, dbeta_tl_rad : float, optional
+            Top-groove deviations; (-theta, theta) is Table 2's matched case (b)  [rad].
+
+        Returns
+        -------
+        PairResult
+            eps (fractions of v/2), f_b2b_n [N], p_f_w and p_b2b_w [W] at the configured v,
+            converged, valid and the reasons when not valid.
+
+        """
         t0 = time.perf_counter()
         cfg, m = self.cfg, self.model
         dbeta = self._dbeta(theta_rad, dbeta_tr_rad, dbeta_tl_rad)
@@ -107,7 +133,21 @@ class LinearPairCase:
                           not notes, tuple(notes), "numerical")
 
     def analytical(self, theta_rad, rho, dbeta_tr_rad=0.0, dbeta_tl_rad=0.0):
-        """Analytical model (Eqs. 22, 30, 32) with the paper's diagonal loads; vectorised."""
+        """
+        Analytical model (Eqs. 22, 30, 32) with the paper's diagonal loads; vectorised.
+
+        Parameters
+        ----------
+        theta_rad, rho, dbeta_tr_rad, dbeta_tl_rad : float or array_like
+            As for ``numerical``  [rad], [1], [rad], [rad]; arrays broadcast together.
+
+        Returns
+        -------
+        PairResult or dict
+            A ``PairResult`` for scalar inputs; for arrays, a dict of arrays ``eps1``,
+            ``eps2`` [1], ``f_b2b_n`` [N], ``p_f_w``, ``p_b2b_w`` [W] and ``valid``.
+
+        """
         t0 = time.perf_counter()
         cfg = self.cfg
         theta, rho_, tr, tl = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (
@@ -126,17 +166,28 @@ class LinearPairCase:
         p_f = sum(an.groove_loss_pure_spin(f, hz.semi_axes(f)[0], hz.ellipticity,
                                            cfg.groove_velocity_m_s, b0, cfg.ball_radius_m,
                                            cfg.friction_coefficient) for f in (f1, f2))
-        # Validity (Sec. 2.3.2, Appendix): four-point contact and |d_eta| within the linear
-        # range |c/a| < 0.5.
-        four_point = (f1.min(axis=-1) > 0) & (f2.min(axis=-1) > 0)
+        # Validity (Sec. 2.3.2): four-point contact, checked with the deviated angles by the
+        # configured statics, as the numerical model checks it.  The linear range |c/a| < 0.5
+        # of Fig. 5 is not made a cutoff: the paper's own case (a) (Table 3, 6 % from FEA)
+        # has |c/a| = 0.56 (analytical) to 0.67 (numerical) at its BR contact.
+        beta = b0 + dbeta
+        four_point = np.ones(theta.shape, dtype=bool)
+        for nx in (rho_ * ny, -rho_ * ny):
+            four_point &= np.all(_loads_grid(cfg, beta, nx) > cfg.min_contact_load_n, axis=-1)
+        # Outside the range of floating point (e.g. N_y = 1e308 N) there is no result.
+        finite = np.isfinite(eps1) & np.isfinite(eps2) & np.isfinite(force) \
+            & np.isfinite(p_f) & np.isfinite(p_b2b)
+        valid = four_point & finite
         elapsed = time.perf_counter() - t0
         if np.ndim(eps1) == 0:
-            notes = () if four_point else ("a contact unloads: outside the analytical model",)
+            notes = (() if four_point else ("a contact unloads (two-point contact): outside "
+                                            "the analytical model",)) \
+                + (() if finite else ("not finite: the inputs overflow floating point",))
             return PairResult((float(eps1), float(eps2)), float(force), float(p_f),
-                              float(p_b2b), True, elapsed, float(p_f), bool(four_point), notes,
-                              "analytical")
+                              float(p_b2b), bool(finite), elapsed, float(p_f), bool(valid),
+                              notes, "analytical")
         return {"eps1": eps1, "eps2": eps2, "f_b2b_n": force, "p_f_w": p_f, "p_b2b_w": p_b2b,
-                "valid": four_point, "solve_time_s": elapsed}
+                "valid": valid, "solve_time_s": elapsed}
 
     def hertz(self):
         """Return the Hertz contact of the configured ball and groove (solved once)."""
@@ -148,7 +199,23 @@ class LinearPairCase:
         return self._hertz
 
     def numerical_grid(self, theta_rad, rho):
-        """Figs. 8(a), 9(a), 9(c): numerical model over a theta x rho grid (1-D axes)."""
+        """
+        Figs. 8(a), 9(a), 9(c): numerical model over a theta x rho grid.
+
+        Parameters
+        ----------
+        theta_rad : array_like, shape (n,)
+            Bottom-groove deviations  [rad].
+        rho : array_like, shape (m,)
+            Side force ratios  [1].
+
+        Returns
+        -------
+        dict
+            Arrays of shape (m, n): ``eps1``, ``eps2`` [1], ``f_b2b_n`` [N], ``p_f_w``,
+            ``p_b2b_w`` [W], ``converged`` and ``valid``.
+
+        """
         shape = (len(rho), len(theta_rad))
         out = {k: np.zeros(shape) for k in ("eps1", "eps2", "f_b2b_n", "p_f_w", "p_b2b_w")}
         out["converged"] = np.zeros(shape, dtype=bool)
@@ -163,6 +230,31 @@ class LinearPairCase:
                 out["converged"][i, j] = res.converged
                 out["valid"][i, j] = res.valid
         return out
+
+
+def _loads_grid(cfg, beta_rad, side_force_n):
+    """
+    Contact loads (..., 4) of one ball by the configured statics, vectorised  [N].
+
+    The rigid statics of ``geometry.contact_forces_rigid`` by Cramer's rule, so that a grid
+    is one call; parallel contact normals (no statics) give non-finite loads.
+    """
+    ny = cfg.vertical_load_n
+    if cfg.contact_force_model == "diagonal":
+        return np.moveaxis(contact_forces_diagonal(cfg.nominal_contact_angle_rad,
+                                                   side_force_n, ny), 0, -1)
+    n = outward_normals(beta_rad)                       # (..., 4, 2)
+    rx, ry = -np.asarray(side_force_n, dtype=float), ny
+
+    def solve2(c1, c2, bx, by):     # x1 c1 + x2 c2 = (bx, by)
+        det = c1[..., 0] * c2[..., 1] - c2[..., 0] * c1[..., 1]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return ((bx * c2[..., 1] - c2[..., 0] * by) / det,
+                    (c1[..., 0] * by - bx * c1[..., 1]) / det)
+
+    f_tr, f_tl = solve2(n[..., 2, :], n[..., 3, :], rx, ry)
+    f_bl, f_br = solve2(n[..., 0, :], n[..., 1, :], -rx, -ry)
+    return np.stack([f_bl, f_br, f_tr, f_tl], axis=-1)
 
 
 def _names(mask):

@@ -4,6 +4,14 @@ Cross-section geometry and rigid statics of a ball between bottom rail and top c
 Contact order everywhere: BL, BR, TR, TL (bottom/top, left/right; paper Fig. 2).  Angles
 beta_i are measured from the -y axis (bottom) or +y axis (top) to the contact normal.
 Global frame: x across, y up, z along the rail (the top groove moves at +v along z).
+
+References
+----------
+.. [1] Lin, B., Duan, M., Okwudire, C. E., 2019, "Analytical and Low-Order Numerical Modeling
+   of Ball-to-Ball Contact Friction in Linear Ball Bearings and Ball Screws", ASME J. Tribol.
+   141(8), DOI 10.1115/1.4043630.
+   Fig. 2, Eq. (18), Sec. 2.4.1 (diagonal loads F_1U, F_1D).
+
 """
 
 import numpy as np

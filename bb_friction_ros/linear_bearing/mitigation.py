@@ -1,10 +1,33 @@
-"""Mitigation of B2B contact (Sec. 2.4.2): the matched-deviation design rule and Fig. 10."""
+"""
+Mitigation of B2B contact (Sec. 2.4.2): the matched-deviation design rule and Fig. 10.
+
+References
+----------
+.. [1] Lin, B., Duan, M., Okwudire, C. E., 2019, "Analytical and Low-Order Numerical Modeling
+   of Ball-to-Ball Contact Friction in Linear Ball Bearings and Ball Screws", ASME J. Tribol.
+   141(8), DOI 10.1115/1.4043630.
+   Sec. 2.4.2, Eq. (22), Table 2 case (b), Fig. 10.
+
+"""
 
 import numpy as np
 
 
 def matched_top_deviations(dbeta_bl_rad, dbeta_br_rad):
-    """Eq. (22) design rule: dbeta_TR = dbeta_BL and dbeta_TL = dbeta_BR null epsilon."""
+    """
+    Eq. (22) design rule: top deviations that null epsilon for any load (Sec. 2.4.2).
+
+    Parameters
+    ----------
+    dbeta_bl_rad, dbeta_br_rad : array_like
+        Measured bottom-groove (rail) deviations  [rad].
+
+    Returns
+    -------
+    (ndarray, ndarray)
+        (dbeta_TR, dbeta_TL) = (dbeta_BL, dbeta_BR) for the carriage  [rad].
+
+    """
     return np.asarray(dbeta_bl_rad, dtype=float), np.asarray(dbeta_br_rad, dtype=float)
 
 
@@ -15,7 +38,26 @@ def two_ball_relative_motion(eps1, eps2, groove_velocity_m_s, initial_gap_m, t_s
 
     Each ball moves at (1 + eps_j) v/2 until the gap closes; from then on both move at
     (1 + eps_contact) v/2 (by default the mean, which Eq. 30 gives for the paper's
-    centrally symmetric loads).  Exact piecewise-linear solution.  Returns (x1, x2, gap) [m].
+    centrally symmetric loads).  Exact piecewise-linear solution.
+
+    Parameters
+    ----------
+    eps1, eps2 : float
+        Velocity deviations of ball 1 (rear) and ball 2 (front)  [1].
+    groove_velocity_m_s : float
+        Velocity v of the top groove  [m/s].
+    initial_gap_m : float
+        Gap between the balls at t = 0  [m].
+    t_s : array_like
+        Times  [s].
+    eps_contact : float, optional
+        Common velocity deviation once in contact  [1]; default (eps1 + eps2) / 2.
+
+    Returns
+    -------
+    (ndarray, ndarray, ndarray)
+        x1, x2: displacements from v/2 t; gap: initial_gap_m - (x1 - x2)  [m].
+
     """
     t = np.asarray(t_s, dtype=float)
     half_v = 0.5 * groove_velocity_m_s

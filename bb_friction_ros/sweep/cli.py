@@ -8,11 +8,13 @@ failed; rerun to resume), 130 interrupted (saved batches are kept).  A bad spec 
 ConfigError, which the main CLI prints and turns into status 2.
 """
 
+import argparse
 import json
 import math
 import sys
 
-from bb_friction_ros.config import ConfigError, load_linear_bearing
+from bb_friction_ros.config import MEMORY_LIMIT_MIB, ConfigError, load_linear_bearing
+from bb_friction_ros.sweep import CONNECT_TIMEOUT_S, IN_FLIGHT_PER_THREAD
 
 INCOMPLETE = 3
 INTERRUPTED = 130
@@ -25,8 +27,25 @@ def _add_cluster_args(p):
     where.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
                        help="address of an existing Dask scheduler (its workers need "
                        "bb_friction_ros installed)")
+    p.add_argument("--connect-timeout-s", type=_positive(float), default=None, metavar="S",
+                   help="how long --scheduler has to answer (default: "
+                   f"{CONNECT_TIMEOUT_S:g} s)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     p.add_argument("--no-plots", action="store_true", help="write no PNG plots")
+
+
+def _positive(kind):
+    """Return an argparse type: a finite number > 0 of ``kind``, refused by its flag if not."""
+    def parse(text):
+        try:
+            value = kind(text)
+        except ValueError:
+            value = None
+        if value is None or not math.isfinite(value) or value <= 0:
+            raise argparse.ArgumentTypeError(f"must be a number > 0, got {text!r}")
+        return value
+    parse.__name__ = kind.__name__
+    return parse
 
 
 def add_sweep_parsers(subparsers):
@@ -39,6 +58,13 @@ def add_sweep_parsers(subparsers):
     _add_cluster_args(p)
     p.add_argument("--max-samples", type=int, default=None, metavar="N",
                    help="stop after about N new samples (whole batches); rerun to resume")
+    p.add_argument("--max-in-flight", type=_positive(int), default=None, metavar="N",
+                   help="batches submitted at a time (default: "
+                   f"{IN_FLIGHT_PER_THREAD} per worker thread); results are saved as they "
+                   "finish and Ctrl-C cancels at most N")
+    p.add_argument("--memory-limit-mib", type=_positive(float), default=MEMORY_LIMIT_MIB,
+                   metavar="MIB", help="refuse a sweep whose results need more memory "
+                   "(default: %(default)g MiB)")
     p.set_defaults(func=_run_sweep)
 
     p = subparsers.add_parser("screw-verdict", help="whole-screw torque-fluctuation verdict "
@@ -88,7 +114,9 @@ def _run_sweep(args):
     try:
         rep = run_sweep(spec, args.out, workers=args.workers, scheduler=args.scheduler,
                         max_samples=args.max_samples, progress=not args.no_progress,
-                        plots=not args.no_plots)
+                        plots=not args.no_plots, max_in_flight=args.max_in_flight,
+                        connect_timeout_s=args.connect_timeout_s,
+                        memory_limit_mib=args.memory_limit_mib)
     except KeyboardInterrupt:
         print(f"sweep: interrupted; saved batches are kept in {args.out}: run the same "
               "command again to resume", file=sys.stderr)
@@ -114,7 +142,8 @@ def _run_verdict(args):
     try:
         result = run_verdict(spec, args.out, args.band_pct / 100.0, args.reference_torque_nm,
                              workers=args.workers, scheduler=args.scheduler,
-                             progress=not args.no_progress, plots=not args.no_plots)
+                             progress=not args.no_progress, plots=not args.no_plots,
+                             connect_timeout_s=args.connect_timeout_s)
     except KeyboardInterrupt:
         print(f"screw-verdict: interrupted; rerun to resume ({args.out})", file=sys.stderr)
         return INTERRUPTED

@@ -12,11 +12,19 @@ Layout of the output directory ``DIR``::
 Execution: the samples are cut into batches of ``spec.batch_size`` (a task per sample would
 cost the scheduler more than the sample); each batch is one ``Client.submit`` of
 ``run_batch``, which computes the batch's inputs from the seed (spec.py) and runs the model on
-each sample.  Results come back as the tasks finish (``as_completed``) and are written at once
-as a part file, so an interruption loses at most the batches in flight.  A rerun with the same
+each sample.  At most ``max_in_flight`` batches are submitted at a time (default
+``IN_FLIGHT_PER_THREAD`` per worker thread): a new one goes in as one finishes
+(``as_completed``), so the client's memory and a Ctrl-C's cancelling do not grow with the
+sweep.  Results are written at once as a part file, so an interruption loses at most the
+batches in flight.  A rerun with the same
 spec and ``DIR`` submits only the batches that have no part file.  A batch whose task failed
 (a worker died, say) is not written: it stays pending and the next run retries it; a failing
-*sample* is a row with status ``failed`` and its reason (models.evaluate).
+*sample* is a row with status ``failed`` and its reason (models.evaluate).  On a resume each
+part's sample ids must be its batch's (a copied or renamed part is discarded and its batch
+computed again); ``results.parquet`` is checked to hold every sample exactly once.
+
+Memory: the results are compacted in memory; a sweep whose estimate
+(``spec.results_bytes``) exceeds ``memory_limit_mib`` is refused before anything runs.
 
 Cluster: by default a ``LocalCluster`` of ``workers`` single-threaded worker processes (all
 cores) bound to 127.0.0.1; with ``scheduler`` an existing cluster (its workers must have
@@ -39,7 +47,8 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from bb_friction_ros import __version__
-from bb_friction_ros.config import ConfigError
+from bb_friction_ros.config import ConfigError, MEMORY_LIMIT_MIB, format_bytes
+from bb_friction_ros.sweep import CONNECT_TIMEOUT_S, IN_FLIGHT_PER_THREAD
 from bb_friction_ros.sweep.models import INVALID, MODELS, OK, evaluate
 
 LOCALHOST = "127.0.0.1"
@@ -47,8 +56,6 @@ PART_PREFIX = "batch-"
 RESULTS = "results.parquet"
 MANIFEST = "manifest.json"
 HISTORY = "runs.jsonl"
-# How long to wait for an existing scheduler to answer before giving up  [s].
-CONNECT_TIMEOUT_S = 30
 _ARROW_TYPES = {"float64": pa.float64(), "int64": pa.int64(), "bool": pa.bool_()}
 
 
@@ -156,15 +163,41 @@ def completed_batches(spec, parts_dir, log=None):
             start, stop = spec.batch_bounds(batch)
             ok = (0 <= batch < spec.n_batches and meta.num_rows == stop - start
                   and meta.schema.to_arrow_schema().equals(schema, check_metadata=False))
+            why = "unreadable or foreign part file"
+            if ok:
+                ids = _sample_range(meta, path)
+                ok = ids == (start, stop - 1)
+                why = (f"part file holds samples {ids[0]}..{ids[1]}, not its batch's "
+                       f"{start}..{stop - 1} (a copied or renamed part?)")
         except (ValueError, OSError, pa.ArrowException):
             ok = False
         if ok:
             done[batch] = meta.num_rows
         else:
             if log:
-                log(f"sweep: discarding unreadable or foreign part file {path.name}")
+                log(f"sweep: discarding {path.name}: {why}; its batch is computed again")
             path.unlink()
     return done
+
+
+def _sample_range(meta, path):
+    """
+    Return (min, max) of a part's ``sample`` column: from the Parquet statistics.
+
+    With ``num_rows`` equal to the batch size, min and max equal to the batch's bounds
+    rule out a part copied from another batch (issue 13 #14) without reading the data;
+    ``compact`` checks every id.  A file without statistics is read.
+    """
+    col = meta.schema.to_arrow_schema().get_field_index("sample")
+    lo, hi = [], []
+    for g in range(meta.num_row_groups):
+        stats = meta.row_group(g).column(col).statistics
+        if stats is None or not stats.has_min_max or stats.null_count:
+            ids = pq.read_table(path, columns=["sample"]).column("sample").to_numpy()
+            return (int(ids.min()), int(ids.max())) if ids.size else (None, None)
+        lo.append(stats.min)
+        hi.append(stats.max)
+    return (int(min(lo)), int(max(hi))) if lo else (None, None)
 
 
 def check_manifest(spec, out_dir):
@@ -191,21 +224,36 @@ def check_manifest(spec, out_dir):
     os.replace(tmp, path)
 
 
+def check_results_memory(spec, memory_limit_mib=None):
+    """Refuse, before anything runs, a sweep whose results would not fit the memory limit."""
+    limit_mib = MEMORY_LIMIT_MIB if memory_limit_mib is None else memory_limit_mib
+    need = spec.results_bytes
+    if need > limit_mib * 2**20:
+        raise ConfigError(
+            f"sweep {spec.name}: {spec.n_samples:,} samples (grid {spec.n_grid:,} x "
+            f"{spec.samples:,} draws) need about {format_bytes(need)} of memory for "
+            f"results.parquet, above the limit of {format_bytes(limit_mib * 2**20)} "
+            "(--memory-limit-mib); make the grid or samples smaller, or split the sweep")
+
+
 @contextmanager
-def dask_client(workers=None, scheduler=None, processes=True):
+def dask_client(workers=None, scheduler=None, processes=True, connect_timeout_s=None):
     """
     Yield (Client, description) of a new LocalCluster or an existing scheduler; close after.
 
     The local cluster binds the scheduler, workers and the HTTP endpoints to 127.0.0.1 on free
     ports and uses single-threaded workers: the models hold the GIL, so threads would not
-    run in parallel.
+    run in parallel.  ``connect_timeout_s``: how long an existing scheduler has to answer
+    (default ``CONNECT_TIMEOUT_S``).
     """
     from distributed import Client, LocalCluster
     if scheduler is not None:
+        timeout = CONNECT_TIMEOUT_S if connect_timeout_s is None else connect_timeout_s
         try:
-            client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
+            client = Client(scheduler, timeout=timeout)
         except (OSError, ValueError) as exc:     # refused, timed out, malformed address
-            raise ConfigError(f"--scheduler {scheduler}: cannot connect ({exc})") from exc
+            raise ConfigError(f"--scheduler {scheduler}: cannot connect within {timeout:g} s "
+                              f"(--connect-timeout-s) ({exc})") from exc
         try:
             yield client, scheduler
         finally:
@@ -245,49 +293,87 @@ class Tally:
     errors: list = dataclasses.field(default_factory=list)
 
 
-def execute(client, spec, batches, parts_dir, bar, max_samples=None, tally=None):
+def default_in_flight(threads):
+    """Return the batches kept in flight on ``threads`` worker threads."""
+    return IN_FLIGHT_PER_THREAD * max(int(threads), 1)
+
+
+def execute(client, spec, batches, parts_dir, bar, max_samples=None, tally=None,
+            max_in_flight=None):
     """
     Run ``batches`` on ``client``, writing each part as it arrives.
 
+    At most ``max_in_flight`` batches are submitted and not yet handled at any time (default:
+    ``IN_FLIGHT_PER_THREAD`` per worker thread); the next is submitted as one finishes.
     Stops early (cancelling what is left) once ``max_samples`` samples are saved.  Returns
     the Tally (also updated in place if given, so an interrupted run knows what it saved).
     """
     from distributed import as_completed
     tally = tally if tally is not None else Tally()
+    if max_in_flight is None:
+        max_in_flight = default_in_flight(
+            sum(w["nthreads"] for w in client.scheduler_info()["workers"].values()))
+    if max_in_flight < 1:
+        raise ConfigError(f"--max-in-flight: must be >= 1, got {max_in_flight}")
     schema = table_schema(spec)
     # Keys name the sweep and batch for the dashboard; the run token keeps them apart from the
     # keys of an earlier run on the same cluster, which may still be being cancelled.
     key_prefix = f"bb-friction-sweep-{spec.digest()[:12]}-{uuid.uuid4().hex[:8]}-"
-    futures = {client.submit(run_batch, spec, b, key=f"{key_prefix}{b}", retries=1): b
-               for b in batches}
+    waiting = iter(batches)
+    futures = {}
+
+    def submit_next():
+        batch = next(waiting, None)
+        if batch is None:
+            return None
+        fut = client.submit(run_batch, spec, batch, key=f"{key_prefix}{batch}", retries=1)
+        futures[fut] = batch
+        return fut
+
+    first = [submit_next() for _ in range(max_in_flight)]
+    running = as_completed([f for f in first if f is not None])
     try:
-        for fut in as_completed(list(futures)):
-            batch = futures[fut]
-            if fut.status != "finished":
+        for fut in running:
+            batch = futures.pop(fut)
+            if fut.status == "finished":
+                table = batch_table(spec, fut.result(), schema)
+                fut.release()
+                write_atomic(table, _part_path(parts_dir, batch))
+                tally.saved += table.num_rows
+                bar.update(table.num_rows)
+            else:
                 exc = fut.exception() if fut.status == "error" else None
                 tally.errors.append((batch, repr(exc) if exc else fut.status))
                 fut.release()
-                continue
-            table = batch_table(spec, fut.result(), schema)
-            fut.release()
-            write_atomic(table, _part_path(parts_dir, batch))
-            tally.saved += table.num_rows
-            bar.update(table.num_rows)
             if max_samples is not None and tally.saved >= max_samples:
                 break
+            nxt = submit_next()
+            if nxt is not None:
+                running.add(nxt)
     finally:
-        left = [f for f in futures if f.status == "pending"]
+        left = [f for f in futures if not f.done()]
         if left:
             client.cancel(left)
     return tally
 
 
 def compact(spec, out_dir):
-    """Merge the part files into DIR/results.parquet (sorted by sample); return the table."""
+    """
+    Merge the part files into DIR/results.parquet (sorted by sample); return the table.
+
+    Refuses (ConfigError naming the directory) a set of parts that does not hold every
+    sample exactly once: a results file never counts a sample twice.
+    """
     schema = table_schema(spec)
     parts = sorted((out_dir / "parts").glob(f"{PART_PREFIX}*.parquet"))
     table = pa.concat_tables([pq.read_table(p, schema=schema) for p in parts])
     table = table.sort_by("sample").replace_schema_metadata(schema.metadata)
+    ids = table.column("sample").to_numpy()
+    if ids.size != spec.n_samples or np.any(ids != np.arange(spec.n_samples)):
+        unique = np.unique(ids).size
+        raise ConfigError(f"--out {out_dir}: the part files hold {ids.size} rows but "
+                          f"{unique} distinct sample ids of {spec.n_samples}; delete "
+                          f"{out_dir / 'parts'} to compute them again")
     write_atomic(table, out_dir / RESULTS)
     return table
 
@@ -321,7 +407,8 @@ def _borrowed(client):
 
 
 def run_sweep(spec, out_dir, workers=None, scheduler=None, processes=True, max_samples=None,
-              progress=True, plots=True, log=None, client=None):
+              progress=True, plots=True, log=None, client=None, max_in_flight=None,
+              connect_timeout_s=None, memory_limit_mib=None):
     """
     Run (or resume) ``spec`` into ``out_dir``; return a RunReport.
 
@@ -329,10 +416,15 @@ def run_sweep(spec, out_dir, workers=None, scheduler=None, processes=True, max_s
     and user hook for a bounded run, resumed by the next call).  When every batch is saved,
     the results are compacted and summarised (summary.json) and, with ``plots``, plotted.
     ``client``: an open distributed Client to use (left open) instead of a new cluster.
+    ``max_in_flight``: batches submitted at a time (default: ``IN_FLIGHT_PER_THREAD`` per
+    worker thread).  ``connect_timeout_s``: for ``scheduler`` (default
+    ``CONNECT_TIMEOUT_S``).  ``memory_limit_mib``: refuse a sweep whose results need more
+    (default ``config.MEMORY_LIMIT_MIB``).
     """
     from bb_friction_ros.sweep import report
     log = log or (lambda msg: print(msg, file=sys.stderr))
     t0 = time.perf_counter()
+    check_results_memory(spec, memory_limit_mib)
     out_dir = Path(out_dir)
     parts_dir = out_dir / "parts"
     parts_dir.mkdir(parents=True, exist_ok=True)
@@ -343,11 +435,12 @@ def run_sweep(spec, out_dir, workers=None, scheduler=None, processes=True, max_s
     if n_resumed:
         log(f"sweep: resuming, {n_resumed} of {spec.n_samples} samples already saved")
     tally = Tally()
-    rep = RunReport(out_dir, spec.n_samples, n_resumed, 0, False, 0.0, 0.0, 0, 0,
-                    scheduler or "local", tuple(todo))
+    rep = RunReport(out_dir=out_dir, n_samples=spec.n_samples, n_resumed=n_resumed,
+                    n_computed=0, complete=False, wall_s=0.0, compute_wall_s=0.0, workers=0,
+                    threads=0, scheduler=scheduler or "local", batches_submitted=tuple(todo))
     if todo:
         session = _borrowed(client) if client is not None \
-            else dask_client(workers, scheduler, processes)
+            else dask_client(workers, scheduler, processes, connect_timeout_s)
         try:
             with session as (client, where):
                 rep.scheduler = where
@@ -356,7 +449,8 @@ def run_sweep(spec, out_dir, workers=None, scheduler=None, processes=True, max_s
                 bar = _progress(spec.n_samples, n_resumed, progress)
                 t1 = time.perf_counter()
                 try:
-                    execute(client, spec, todo, parts_dir, bar, max_samples, tally)
+                    execute(client, spec, todo, parts_dir, bar, max_samples, tally,
+                            max_in_flight)
                 finally:
                     rep.compute_wall_s = time.perf_counter() - t1
                     bar.close()

@@ -115,7 +115,11 @@ LINEAR_CASE_PARAMETERS = (
 
 
 def config_parameters(config):
-    """Return {name: Parameter} of every numeric field of a config dataclass (dotted if nested)."""
+    """
+    Return {name: Parameter} of every numeric field of a config dataclass (dotted if nested).
+
+    A renamed field (``RENAMED`` of its class) is also listed under its old name.
+    """
     out = {}
 
     def walk(obj, prefix):
@@ -127,6 +131,9 @@ def config_parameters(config):
                     and "unit" in f.metadata:
                 out[prefix + f.name] = Parameter(prefix + f.name, f.metadata["unit"],
                                                  f.metadata["doc"], isinstance(value, int))
+        for old, new in getattr(type(obj), "RENAMED", {}).items():
+            if prefix + new in out:     # an old name: the same parameter, named anew
+                out[prefix + old] = out[prefix + new]
     walk(config, "")
     return out
 
@@ -236,7 +243,7 @@ def run_screw_pair(cfg, params, options):
     from bb_friction_ros.ball_screw.module import solve_two_ball_module
     op = cfg.operation
     res = solve_two_ball_module(screw_model(cfg), op.module_theta1_rad, op.module_theta2_rad,
-                                op.module_axial_load_n, op.nut_speed_rad_s)
+                                op.module_axial_load_n, op.nut_velocity_rad_s)
     if not res.converged:
         return {}, NONCONVERGED, "two-ball module solve did not converge"
     out = {o.name: getattr(res, o.name) for o in SCREW_PAIR_OUTPUTS}

@@ -1,5 +1,5 @@
 """
-Plots of a finished sweep (PNG, matplotlib Agg), in display units (deg, mm or um, %).
+Plots of a finished sweep (PNG), in display units (deg, mm or um, %).
 
 - ``grid_heatmaps.png``: with two or more grid axes, one heatmap per output over the first two
   axes (Figs. 8-9 style); where a grid point has several values (random draws, further axes)
@@ -14,6 +14,7 @@ Plots of a finished sweep (PNG, matplotlib Agg), in display units (deg, mm or um
 import math
 import warnings
 
+from matplotlib.figure import Figure
 import numpy as np
 
 from bb_friction_ros.sweep.models import MODELS
@@ -28,13 +29,6 @@ PANEL_COLUMNS = 2
 HIST_COLUMNS = 3
 HIST_BINS = 40
 DPI = 110
-
-
-def _plt():
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
 
 
 def display_input(name, values):
@@ -77,12 +71,11 @@ def _nanmedian(a, axis):
 
 def plot_grid(spec, table, path):
     """Write the heatmaps (or 1-D curves) of every output over the grid; return the path."""
-    plt = _plt()
     axes_used = [i for i, a in enumerate(spec.grid) if len(a.values) > 1]
     names = _float_outputs(spec)
     rows = math.ceil(len(names) / PANEL_COLUMNS)
-    fig, axs = plt.subplots(rows, PANEL_COLUMNS, figsize=(5.2 * PANEL_COLUMNS, 4.0 * rows),
-                            squeeze=False)
+    fig = Figure(figsize=(5.2 * PANEL_COLUMNS, 4.0 * rows))
+    axs = fig.subplots(rows, PANEL_COLUMNS, squeeze=False)
     extra = spec.samples > 1 or len(axes_used) > 2
     for ax, name in zip(axs.flat, names):
         med = grid_medians(spec, table, name)
@@ -122,16 +115,15 @@ def plot_grid(spec, table, path):
     for ax in list(axs.flat)[len(names):]:
         ax.set_visible(False)
     fig.suptitle(f"{spec.name}: {spec.model} over the grid")
-    return _save(plt, fig, path)
+    return _save(fig, path)
 
 
 def plot_histograms(spec, table, summary, path):
     """Write a histogram per output with its 5/50/95 % quantiles; return the path."""
-    plt = _plt()
     names = _float_outputs(spec)
     rows = math.ceil(len(names) / HIST_COLUMNS)
-    fig, axs = plt.subplots(rows, HIST_COLUMNS, figsize=(4.4 * HIST_COLUMNS, 3.3 * rows),
-                            squeeze=False)
+    fig = Figure(figsize=(4.4 * HIST_COLUMNS, 3.3 * rows))
+    axs = fig.subplots(rows, HIST_COLUMNS, squeeze=False)
     mask = with_numbers(table)
     for ax, name in zip(axs.flat, names):
         label, y = display_output(spec, name, column(table, name)[mask])
@@ -148,7 +140,7 @@ def plot_histograms(spec, table, summary, path):
     for ax in list(axs.flat)[len(names):]:
         ax.set_visible(False)
     fig.suptitle(f"{spec.name}: {int(mask.sum())} samples with results of {table.num_rows}")
-    return _save(plt, fig, path)
+    return _save(fig, path)
 
 
 def plot_sensitivity(spec, summary, path):
@@ -156,11 +148,11 @@ def plot_sensitivity(spec, summary, path):
     by_output = summary["sensitivity"]["by_output"]
     if not by_output:
         return None
-    plt = _plt()
     names = list(by_output)
     rows = math.ceil(len(names) / PANEL_COLUMNS)
-    fig, axs = plt.subplots(rows, PANEL_COLUMNS, figsize=(5.5 * PANEL_COLUMNS, 0.5 + 0.5 * max(
-        len(v["ranking"]) for v in by_output.values()) * rows + 1.0 * rows), squeeze=False)
+    fig = Figure(figsize=(5.5 * PANEL_COLUMNS, 0.5 + 0.5 * max(
+        len(v["ranking"]) for v in by_output.values()) * rows + 1.0 * rows))
+    axs = fig.subplots(rows, PANEL_COLUMNS, squeeze=False)
     for ax, name in zip(axs.flat, names):
         ranking = by_output[name]["ranking"][::-1]
         s = [np.nan_to_num(r["first_order"] if r["first_order"] is not None else np.nan)
@@ -177,7 +169,7 @@ def plot_sensitivity(spec, summary, path):
     for ax in list(axs.flat)[len(names):]:
         ax.set_visible(False)
     fig.suptitle(f"{spec.name}: which input drives each output")
-    return _save(plt, fig, path)
+    return _save(fig, path)
 
 
 def plot_all(spec, table, summary, out_dir):
@@ -197,8 +189,7 @@ def plot_all(spec, table, summary, out_dir):
 TITLE_ROOM = 0.04
 
 
-def _save(plt, fig, path):
+def _save(fig, path):
     fig.tight_layout(rect=(0.0, 0.0, 1.0, 1.0 - TITLE_ROOM))
     fig.savefig(path, dpi=DPI)
-    plt.close(fig)
     return path

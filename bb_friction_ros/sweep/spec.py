@@ -24,6 +24,7 @@ import hashlib
 import json
 import math
 from pathlib import Path
+import warnings
 import zlib
 
 import numpy as np
@@ -42,6 +43,14 @@ DISTRIBUTIONS = {            # kind -> its parameters, in the order the draw use
     "integers": ("low", "high"),     # inclusive, for integer parameters (ball count)
     "choice": ("values",),           # equally likely
 }
+
+
+# Memory estimate of the results (issue 13 #20): every column is 8 bytes a row but the
+# text ones: the converged flag, the status (offset and ~12 characters) and the reason
+# (offset; null when ok) take about this much a row.
+_ROW_TEXT_BYTES = 24
+# results.parquet is compacted in memory: the parts read, then their sorted copy.
+_COMPACT_COPIES = 2
 
 
 @dataclasses.dataclass(frozen=True)
@@ -117,6 +126,12 @@ class SweepSpec:
     def n_batches(self):
         """Return the number of Dask tasks (batches of ``batch_size`` samples)."""
         return -(-self.n_samples // self.batch_size)
+
+    @property
+    def results_bytes(self):
+        """Return the memory [bytes] the results need when they are compacted (an estimate)."""
+        columns = 3 + len(self.input_names) + len(self.outputs)
+        return _COMPACT_COPIES * self.n_samples * (8 * columns + _ROW_TEXT_BYTES)
 
     @property
     def input_names(self):
@@ -253,9 +268,14 @@ def _parameter(name, parameters, model, path):
         raise ConfigError(f"{path}: parameter names are strings, got {name!r}")
     resolved = si_key(name, parameters)
     if resolved is not None:
-        return parameters[resolved[0]], resolved[1]
+        param = parameters[resolved[0]]
+        if param.name != resolved[0]:       # an old name of a renamed config field
+            warnings.warn(f"{path}: renamed to {param.name}; read as {param.name}, please "
+                          f"write {param.name}", FutureWarning, stacklevel=2)
+        return param, resolved[1]
+    known = sorted(k for k, p in parameters.items() if p.name == k)
     raise ConfigError(f"{path}: unknown parameter of model {model.name} (known: "
-                      f"{', '.join(sorted(parameters))}; edge units *_deg, *_mm, *_um)")
+                      f"{', '.join(known)}; edge units *_deg, *_mm, *_um)")
 
 
 def _number(value, path):

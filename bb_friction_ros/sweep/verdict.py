@@ -111,7 +111,8 @@ def verdict_specs(spec):
 
 
 def run_verdict(spec, out_dir, band_rel, reference_torque_nm=None, workers=None,
-                scheduler=None, processes=True, progress=True, plots=True, log=None):
+                scheduler=None, processes=True, progress=True, plots=True, log=None,
+                connect_timeout_s=None):
     """Run the nominal and tolerance sweeps and write DIR/verdict.json; return the verdict."""
     from bb_friction_ros.sweep.engine import dask_client, run_sweep
     if not band_rel > 0:
@@ -121,7 +122,7 @@ def run_verdict(spec, out_dir, band_rel, reference_torque_nm=None, workers=None,
         raise ConfigError("--reference-torque-nm: must be finite and non-zero")
     nominal_spec, tolerance_spec = verdict_specs(spec)
     out_dir = Path(out_dir)
-    with dask_client(workers, scheduler, processes) as (client, _):
+    with dask_client(workers, scheduler, processes, connect_timeout_s) as (client, _):
         runs = [run_sweep(s, out_dir / sub, progress=progress, plots=plots, log=log,
                           client=client)
                 for s, sub in ((nominal_spec, "nominal"), (tolerance_spec, "tolerance"))]

@@ -13,6 +13,7 @@ from bb_friction_ros.ball_screw.screw_model import ScrewModel
 from bb_friction_ros.ball_screw.simulation import run_whole_screw
 from bb_friction_ros.ball_screw.single_ball import LENGTH_SCALE_M
 from bb_friction_ros.ball_screw.whole_screw import WholeScrew
+from invariants import check_module, check_step
 
 pytestmark = pytest.mark.skipif(not kernel.HAVE_NUMBA, reason="numba not installed")
 
@@ -96,7 +97,8 @@ def test_kernel_b2b_terms_and_exact_direction_jacobian(model, sign):
 def test_two_ball_module_kernel_equals_numpy(model, numpy_model, theta2_deg):
     fast = solve_two_ball_module(model, 0.0, math.radians(theta2_deg), 50.0)
     ref = solve_two_ball_module(numpy_model, 0.0, math.radians(theta2_deg), 50.0)
-    assert fast.converged and ref.converged
+    check_module(fast)
+    check_module(ref)
     assert fast.f_b2b_n == pytest.approx(ref.f_b2b_n, rel=1e-8)
     assert fast.friction_increase == pytest.approx(ref.friction_increase, rel=1e-8)
     assert fast.loads_n == pytest.approx(ref.loads_n, rel=1e-8, abs=1e-9)
@@ -110,7 +112,8 @@ def numpy_run(config, numpy_model):
 def _assert_same_run(results, ref):
     scale = max(abs(r.torque_total_nm) for r in ref)
     for r, q in zip(results, ref):
-        assert r.converged and q.converged
+        check_step(r)
+        check_step(q)
         assert r.torque_total_nm == pytest.approx(q.torque_total_nm, abs=1e-8 * scale)
         assert r.torque_b2b_nm == pytest.approx(q.torque_b2b_nm, abs=1e-8 * scale)
         assert r.azimuth_rad == pytest.approx(q.azimuth_rad, abs=1e-10)
@@ -169,5 +172,4 @@ def test_lead_errors_kernel_equals_numpy(model, numpy_model):
                                                 "screw_lead_error_amplitude_um": 1.0}})
     fast = run_whole_screw(cfg, n_steps=12, screw=WholeScrew(cfg, model))[0]
     ref = run_whole_screw(cfg, n_steps=12, screw=WholeScrew(cfg, numpy_model))[0]
-    _assert_same_run(fast, ref)
-    assert all(r.drive_power_w == pytest.approx(r.loss_w, rel=1e-6) for r in fast)
+    _assert_same_run(fast, ref)      # which checks the invariants of every step

@@ -39,3 +39,27 @@ def test_edge_units_converted():
                                      "geometry": {"ball_oversize_um": 2.0}})
     assert cfg.errors.theta_amplitude_rad == pytest.approx(math.radians(1.5))
     assert cfg.geometry.ball_oversize_m == pytest.approx(2e-6)
+
+
+def test_nut_velocity_is_signed_and_so_named():
+    # omega_N is signed (its sign sets the direction of friction): *_velocity_*, as in the
+    # node, the runner and the bags.
+    cfg = load_ball_screw(overrides={"operation": {"nut_velocity_rad_s": -3.0}})
+    assert cfg.operation.nut_velocity_rad_s == -3.0
+
+
+def test_old_name_nut_speed_is_read_as_nut_velocity_with_a_warning(tmp_path):
+    # Files written before the rename keep working; the warning names both keys.
+    p = tmp_path / "old.yaml"
+    p.write_text("ball_screw:\n  operation:\n    nut_speed_rad_s: -3.0\n")
+    with pytest.warns(FutureWarning, match=r"ball_screw\.operation\.nut_speed_rad_s: renamed "
+                      r"to nut_velocity_rad_s"):
+        cfg = load_ball_screw(p)
+    assert cfg.operation.nut_velocity_rad_s == -3.0
+    # both spellings at once is ambiguous: refused, naming the key
+    with pytest.warns(FutureWarning), pytest.raises(ConfigError, match="given twice"):
+        load_ball_screw(overrides={"operation": {"nut_velocity_rad_s": 1.0,
+                                                 "nut_speed_rad_s": 3.0}})
+    with pytest.warns(FutureWarning), pytest.raises(ConfigError,
+                                                    match=r"operation\.nut_speed_rad_s"):
+        load_ball_screw(overrides={"operation": {"nut_speed_rad_s": 1e9}})

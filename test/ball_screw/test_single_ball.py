@@ -5,7 +5,9 @@ import math
 import numpy as np
 import pytest
 
+from bb_friction_ros import paper
 from bb_friction_ros.ball_screw import geometry as geo
+from invariants import check_screw_balls, paper_approx
 
 
 def _solve(model, theta_deg, sign=1.0, load=25.0):
@@ -59,12 +61,7 @@ def test_three_point_contact_at_50n(model):
 @pytest.mark.parametrize("theta_deg", [0.0, 2.0, -3.0])
 @pytest.mark.parametrize("sign", [1.0, -1.0])
 def test_power_balance_single_ball(model, theta_deg, sign):
-    b = model.ball
-    sol = _solve(model, theta_deg, sign)
-    torque = sol.terms["nut_torque"].sum() - 25.0 * b.r_gear
-    loss = sol.terms["loss"].sum()
-    assert sign * torque == pytest.approx(loss, rel=1e-7)
-    assert loss > 0.0
+    check_screw_balls(_solve(model, theta_deg, sign), sign, 25.0, model.ball.r_gear)
 
 
 def test_mirror_symmetry(model):
@@ -75,13 +72,18 @@ def test_mirror_symmetry(model):
     assert m.terms["load"][0] == pytest.approx(a.terms["load"][0][[1, 0, 3, 2]], rel=1e-6)
     assert m.x[0, 2] == pytest.approx(-a.x[0, 2], rel=1e-8)
     assert m.terms["loss"].sum() == pytest.approx(a.terms["loss"].sum(), rel=1e-7)
+    check_screw_balls(m, -1.0, -25.0, model.ball.r_gear)
 
 
 def test_b2b_separation_exact_helix():
-    sep = geo.b2b_contact_separation(2.778e-3, 20e-3, 16.5e-3)
-    chord = np.linalg.norm(geo.nominal_ball_centre(sep, 16.5e-3, 20e-3)
-                           - geo.nominal_ball_centre(0.0, 16.5e-3, 20e-3))
-    assert chord == pytest.approx(2 * 2.778e-3, rel=1e-12)
+    t4 = paper.TABLE4
+    r_b, lead, r_p = t4["ball_radius_m"], t4["lead_m"], t4["pitch_radius_m"]
+    sep = geo.b2b_contact_separation(r_b, lead, r_p)
+    chord = np.linalg.norm(geo.nominal_ball_centre(sep, r_p, lead)
+                           - geo.nominal_ball_centre(0.0, r_p, lead))
+    assert chord == pytest.approx(2 * r_b, rel=1e-12)
     # Eq. (56) (circle of radius L/2pi) differs by ~0.02 %.
-    assert 2 * geo.b2b_contact_angle(2.778e-3, 20e-3, 16.5e-3) == pytest.approx(sep, rel=1e-3)
-    assert math.degrees(sep) * 37 / 720 == pytest.approx(0.978, abs=1e-3)
+    assert 2 * geo.b2b_contact_angle(r_b, lead, r_p) == pytest.approx(sep, rel=1e-3)
+    # Sec. 3.4: 37 balls in two loaded turns occupy 97.8 % of the track
+    occupation = 100 * math.degrees(sep) * t4["n_balls"] / 720
+    assert occupation == paper_approx(paper.OCCUPATION_RATIO)

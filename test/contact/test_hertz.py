@@ -5,15 +5,18 @@ import math
 import numpy as np
 import pytest
 
+from bb_friction_ros import paper
 from bb_friction_ros.contact.hertz import HertzContact, effective_modulus
+from invariants import paper_approx
 
-TABLE1 = dict(ball_radius_m=5e-3, conformity=0.56, youngs_modulus_pa=210e9, poisson_ratio=0.28)
+TABLE1 = {k: paper.TABLE1[k]
+          for k in ("ball_radius_m", "conformity", "youngs_modulus_pa", "poisson_ratio")}
 
 
 def test_table1_psi():
-    """Table 1: Psi = 5.307e-4 (m^2/N)^(1/3); printed to 4 digits, so 0.02 % tolerance."""
+    """Table 1: Psi (tolerance and reason: ``paper.PSI``)."""
     hz = HertzContact.ball_in_straight_groove(**TABLE1)
-    assert hz.psi(TABLE1["ball_radius_m"]) == pytest.approx(5.307e-4, rel=2e-4)
+    assert hz.psi(TABLE1["ball_radius_m"]) == paper_approx(paper.PSI)
 
 
 def test_table1_b_over_a():

@@ -66,3 +66,36 @@ def test_live_terms_use_the_causal_filter_and_reset():
     assert np.allclose(out, 0.01 * causal(t, v, 10.0, 0.01))
     live.reset()
     assert live.torque_nm(5.0, 0.0, 0.0, 3.0, 1.0) == 0.0      # a new segment starts at rest
+
+
+def test_feedforward_and_look_ahead_carry_the_inertia_term(tmp_path):
+    """
+    The runner's held feedforward and look-ahead profile include J alpha of the same causal
+    filter as the prediction (the terms are evaluated once per sample; alpha is held ahead).
+    """
+    from bb_friction_ros.config import bundled_config
+    from bb_friction_ros.empirical_terms import make_term, TermSet
+    from bb_friction_ros.model_file import read_model_file, write_model_file
+    from bb_friction_ros.runner import build_runner, InputSample, look_ahead_profile
+    j = 3e-4
+    cfg = tmp_path / "aug.yaml"
+    inertia = make_term("inertia", {"j_kg_m2": j, "accel_cutoff_hz": 10.0, "max_gap_s": 0.1})
+    write_model_file(cfg, read_model_file(bundled_config("ball_screw.yaml"))[0],
+                     TermSet([inertia]))
+    runner = build_runner(cfg, 100.0)
+    f = AccelerationFilter(10.0, 0.1)
+    seed = None
+    for k in range(40):                     # a ramp of 50 rad/s^2 from 1 rad/s, at 1 kHz
+        t = k * 1e-3
+        w = 1.0 + 50.0 * t
+        p = runner.process(InputSample(t, w * t, w, 1500.0))
+        alpha = f.update(t, w)
+        assert p.torque_empirical_nm == pytest.approx(j * alpha, rel=1e-9, abs=1e-12)
+        if p.stepped and p.converged:
+            assert p.feedforward_nm == pytest.approx(p.torque_total_nm)
+            seed = runner.profile_seed(InputSample(t, w * t, w, 1500.0))
+            first = p.torque_total_nm
+    assert seed is not None and abs(seed.nut_accel_rad_s2) > 10.0
+    angles, torques, _ = look_ahead_profile(seed, 2.0, 3)
+    assert torques[0] == pytest.approx(first)            # psi_0: the prediction itself
+    assert len(torques) == 3 and all(math.isfinite(x) for x in torques)

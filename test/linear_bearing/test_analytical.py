@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from bb_friction_ros import paper
 from bb_friction_ros.config import load_linear_bearing
 from bb_friction_ros.contact.hertz import HertzContact
 from bb_friction_ros.linear_bearing import analytical as an
@@ -12,9 +13,10 @@ from bb_friction_ros.linear_bearing.case_study import LinearPairCase
 from bb_friction_ros.linear_bearing.geometry import contact_forces_diagonal
 from bb_friction_ros.linear_bearing.mitigation import (matched_top_deviations,
                                                        two_ball_relative_motion)
+from invariants import check_linear_pair, paper_approx
 
-THETA = math.radians(2.0)
-B0 = math.radians(45.0)
+THETA = paper.TABLE1["theta_rad"]
+B0 = paper.TABLE1["nominal_contact_angle_rad"]
 
 
 @pytest.fixture(scope="module")
@@ -23,16 +25,20 @@ def case():
 
 
 def test_table2_analytical_eps(case):
-    """Table 2 (a): analytical eps_1 = -eps_2 = 0.75 % (2 decimals printed: 0.01 pt)."""
+    """Table 2 (a): analytical eps_1 = -eps_2 (tolerances: ``paper.EPS1_AN``, ``EPS2_AN``)."""
     res = case.analytical(THETA, -0.6)
-    assert res.eps[0] * 100 == pytest.approx(0.75, abs=0.01)
+    check_linear_pair(res)
+    assert res.eps[0] * 100 == paper_approx(paper.EPS1_AN)
+    assert res.eps[1] * 100 == paper_approx(paper.EPS2_AN)
     assert res.eps[1] == pytest.approx(-res.eps[0], abs=1e-15)
 
 
 def test_table3_b2b_force_analytical(case):
-    """Table 3 (a): analytical F_B2B = 3.74 N, 1 % tolerance; case (b): 0 N."""
-    assert case.analytical(THETA, -0.6).f_b2b_n == pytest.approx(3.74, rel=0.01)
-    assert case.analytical(THETA, -0.6, -THETA, THETA).f_b2b_n == 0.0
+    """Table 3: analytical F_B2B, case (a) (``paper.F_B2B_AN``) and case (b): 0 N."""
+    assert case.analytical(THETA, -0.6).f_b2b_n == paper_approx(paper.F_B2B_AN)
+    res_b = case.analytical(THETA, -0.6, -THETA, THETA)
+    check_linear_pair(res_b)
+    assert res_b.f_b2b_n == paper_approx(paper.F_B2B_B)
 
 
 def test_eq33_is_eq22_for_the_case_study():
@@ -46,14 +52,17 @@ def test_eq33_is_eq22_for_the_case_study():
 
 def test_eq16_19_21_reduce_to_eq22_with_diagonal_loads():
     """Eqs. (16)+(19)+(21) with F_BL = F_TR, F_BR = F_TL give Eq. (22) (its derivation)."""
-    hz = HertzContact.ball_in_straight_groove(5e-3, 0.56, 210e9, 0.28)
+    t1 = paper.TABLE1
+    r_b = t1["ball_radius_m"]
+    hz = HertzContact.ball_in_straight_groove(r_b, t1["conformity"], t1["youngs_modulus_pa"],
+                                              t1["poisson_ratio"])
     rng = np.random.default_rng(1)
     for _ in range(5):
         dbeta = np.radians(rng.uniform(-2, 2, 4))
         fu, fd = rng.uniform(20, 150, 2)
         loads = np.array([fu, fd, fu, fd])
-        d_eta = an.velocity_centre_deviation(dbeta, loads, np.full(4, B0), 5e-3,
-                                             hz.psi(5e-3), hz.ellipticity, 1.38)
+        d_eta = an.velocity_centre_deviation(dbeta, loads, np.full(4, B0), r_b,
+                                             hz.psi(r_b), hz.ellipticity, paper.K_F.value)
         assert an.velocity_deviation_eq21(dbeta, d_eta, B0) == pytest.approx(
             an.velocity_deviation_eq22(dbeta, fu, fd, B0), abs=1e-12)
 
@@ -82,6 +91,7 @@ def test_analytical_grid_is_vectorised(case):
     rho = np.linspace(-0.6, 0.6, 100)
     grid = case.analytical(th[None, :], rho[:, None])
     assert grid["f_b2b_n"].shape == (100, 100)
+    check_linear_pair(grid)
     s = case.analytical(th[7], rho[90])
     assert grid["f_b2b_n"][90, 7] == pytest.approx(s.f_b2b_n, rel=1e-12)
     assert np.all(grid["f_b2b_n"] >= 0)

@@ -4,10 +4,12 @@ import math
 
 import pytest
 
+from bb_friction_ros import paper
 from bb_friction_ros.config import ConfigError, load_linear_bearing
 from bb_friction_ros.sweep.advisor import advise, format_advice
+from invariants import paper_approx
 
-THETA = math.radians(2.0)
+THETA = paper.TABLE1["theta_rad"]
 
 
 def test_matched_carriage_nulls_b2b_friction():
@@ -16,7 +18,7 @@ def test_matched_carriage_nulls_b2b_friction():
     assert station['matched_dbeta_tr_rad'] == -THETA
     assert station['matched_dbeta_tl_rad'] == THETA
     before, after = station['cases'][0]['before'], station['cases'][0]['after']
-    assert before['f_b2b_n'] == pytest.approx(4.01, rel=0.02)        # Table 3 (a)
+    assert before['f_b2b_n'] == paper_approx(paper.F_B2B_NUM)        # Table 3 (a)
     assert after['f_b2b_n'] == 0.0 and abs(after['eps_diff']) < 1e-9  # Table 2/3 (b)
     assert after['friction_ratio'] == pytest.approx(1.0)
     assert station['cases'][1]['before']['f_b2b_n'] == 0.0            # rho > 0: no contact

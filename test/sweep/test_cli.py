@@ -57,3 +57,21 @@ def test_linear_mitigate_json(capsys):
     result = json.loads(capsys.readouterr().out)
     case = result['stations'][0]['cases'][0]
     assert case['before']['f_b2b_n'] > 3.9 and case['after']['f_b2b_n'] == 0.0
+
+
+@pytest.mark.parametrize('flag', ['--max-in-flight', '--connect-timeout-s', '--memory-limit-mib'])
+@pytest.mark.parametrize('value', ['0', '-1', 'nan', 'x'])
+def test_run_settings_must_be_positive(flag, value, capsys):
+    """Issue 13 #20, #27, #28: the new settings are refused by their flag when not > 0."""
+    with pytest.raises(SystemExit) as exc:
+        parse('sweep', 's.yaml', '--out', 'o', flag, value)
+    assert exc.value.code == 2 and flag in capsys.readouterr().err
+
+
+def test_memory_limit_flag_reaches_the_check(tmp_path):
+    path = tmp_path / 'grid.yaml'
+    path.write_text(yaml.safe_dump({'sweep': {'model': 'linear_pair',
+                                              'grid': {'rho': [-0.6, 0.0, 0.6]}}}))
+    with pytest.raises(ConfigError, match=r'3 samples .*--memory-limit-mib'):
+        call('sweep', str(path), '--out', str(tmp_path / 'out'), '--memory-limit-mib', '1e-6')
+    assert not (tmp_path / 'out').exists()

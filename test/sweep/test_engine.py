@@ -175,17 +175,126 @@ def test_interrupted_run_keeps_its_parts_and_history(tmp_path, linear_mc, client
 
 
 def test_bundled_figs_8_9_grid_reproduces_the_paper(tmp_path, repo_root, client):
-    """config/sweeps/fig08_09_grid.yaml: max (P_f + P_fB2B)/P_f = 185.2 % at the corners."""
+    """config/sweeps/fig08_09_grid.yaml: max (P_f + P_fB2B)/P_f of Fig. 9(c) at the corners."""
     import numpy as np
+
+    from bb_friction_ros import paper
+    from invariants import paper_approx
 
     from bb_friction_ros.sweep.report import column
     from bb_friction_ros.sweep.spec import load_spec
     spec = load_spec(repo_root / 'config' / 'sweeps' / 'fig08_09_grid.yaml')
     rep = run_sweep(spec, tmp_path, client=client, **QUIET)
     assert rep.summary['n_ok'] == spec.n_samples == 625
-    assert rep.summary['outputs']['friction_ratio']['max'] == pytest.approx(1.852, abs=0.02)
+    assert 100 * rep.summary['outputs']['friction_ratio']['max'] == paper_approx(
+        paper.MAX_LOSS_RATIO)
     table = results(tmp_path)
     worst = int(np.argmax(column(table, 'friction_ratio')))
     theta, rho = column(table, 'theta_rad')[worst], column(table, 'rho')[worst]
     assert abs(np.degrees(theta)) == pytest.approx(3.0) and abs(rho) == pytest.approx(0.6)
     assert np.sign(theta) == -np.sign(rho)
+
+
+# --- issue 13 reliability findings 14, 20, 27, 28
+
+def test_resume_over_a_copied_part_file_recomputes_its_batch(tmp_path, linear_mc, client):
+    """#14: a part copied over another batch's name is discarded, said, and computed again."""
+    spec = linear_mc(samples=20)
+    first = run_sweep(spec, tmp_path, client=client, max_samples=5, max_in_flight=1, **QUIET)
+    assert parts(tmp_path).keys() == {'batch-000000.parquet'} and not first.complete
+    part = tmp_path / 'parts' / 'batch-000000.parquet'
+    (tmp_path / 'parts' / 'batch-000002.parquet').write_bytes(part.read_bytes())
+    said = []
+    rep = run_sweep(spec, tmp_path, client=client, **{**QUIET, 'log': said.append})
+    assert rep.complete and rep.n_resumed == 5 and 2 in rep.batches_submitted
+    assert any('batch-000002.parquet' in m and 'samples 0..4' in m and '10..14' in m
+               for m in said), said
+    assert results(tmp_path).column('sample').to_pylist() == list(range(20))
+
+
+def test_compact_refuses_duplicate_sample_ids(tmp_path, linear_mc, client):
+    """#14: the last guard: results.parquet never counts a sample twice."""
+    import pyarrow as pa
+    spec = linear_mc(samples=10)
+    run_sweep(spec, tmp_path, client=client, **QUIET)
+    path = tmp_path / 'parts' / 'batch-000001.parquet'
+    table = pq.read_table(path)
+    ids = pa.array([5, 5, 7, 8, 9], pa.int64())           # min and max still 5..9
+    pq.write_table(table.set_column(0, table.schema.field('sample'), ids), path)
+    with pytest.raises(ConfigError, match='10 rows but 9 distinct sample ids of 10'):
+        engine.compact(spec, tmp_path)
+
+
+def test_huge_grid_refused_up_front_with_the_figure(tmp_path, linear_mc):
+    """#20: a 10^6 x 10^6 grid is refused before anything runs or is written."""
+    from bb_friction_ros.sweep.spec import spec_from_mapping
+    spec = spec_from_mapping({'model': 'linear_pair', 'grid': {
+        'theta_deg': {'start': -2.0, 'stop': 2.0, 'num': 1_000_000},
+        'rho': {'start': -0.6, 'stop': 0.6, 'num': 1_000_000}}})
+    out = tmp_path / 'out'
+    with pytest.raises(ConfigError, match=r'1,000,000,000,000 samples .* about [\d.]+ TiB of '
+                       r'memory .*--memory-limit-mib'):
+        run_sweep(spec, out, **QUIET)
+    assert not out.exists()
+
+
+def test_ten_million_samples_fit_the_default_limit(linear_mc):
+    """#20: the check refuses absurd sweeps, not the large ones a user runs (issue 13 #27)."""
+    spec = linear_mc(samples=10_000_000, batch_size=50)
+    engine.check_results_memory(spec)
+    with pytest.raises(ConfigError, match='--memory-limit-mib'):
+        engine.check_results_memory(spec, memory_limit_mib=100)
+
+
+class _SubmitSpy:
+    """A real Client that records, at each submit, the batches submitted and not yet saved."""
+
+    def __init__(self, client):
+        self._client = client
+        self.saved = 0
+        self.in_flight_at_submit = []
+
+    def submit(self, *args, **kwargs):
+        self.in_flight_at_submit.append(len(self.in_flight_at_submit) - self.saved)
+        return self._client.submit(*args, **kwargs)
+
+    def __getattr__(self, name):
+        return getattr(self._client, name)
+
+
+def test_never_more_than_the_cap_in_flight(tmp_path, linear_mc, client, monkeypatch):
+    """#27: batches are submitted in a bounded window and saved as they finish."""
+    spec = linear_mc(samples=40)                 # 8 batches
+    spy = _SubmitSpy(client)
+    original = engine.write_atomic
+
+    def count(table, path):
+        original(table, path)
+        spy.saved += 1
+    monkeypatch.setattr(engine, 'write_atomic', count)
+    rep = run_sweep(spec, tmp_path, client=spy, max_in_flight=2, **QUIET)
+    assert rep.complete and len(spy.in_flight_at_submit) == spec.n_batches
+    # Before each submit fewer than the cap are in flight: never more than 2 after it.
+    assert max(spy.in_flight_at_submit) < 2, spy.in_flight_at_submit
+    assert spy.in_flight_at_submit[:2] == [0, 1]
+
+
+def test_default_window_is_per_worker_thread():
+    assert engine.default_in_flight(2) == 2 * engine.IN_FLIGHT_PER_THREAD
+    assert engine.default_in_flight(0) == engine.IN_FLIGHT_PER_THREAD
+
+
+def test_unreachable_scheduler_short_timeout_said(tmp_path, linear_mc):
+    """#28: the connect timeout is a setting, a few seconds by default, and the error says so."""
+    import socket
+    import time
+    assert engine.CONNECT_TIMEOUT_S <= 5
+    with socket.socket() as sock:
+        sock.bind(('127.0.0.1', 0))
+        port = sock.getsockname()[1]
+    t0 = time.monotonic()
+    with pytest.raises(ConfigError, match=r'--scheduler tcp://127\.0\.0\.1:\d+: cannot connect '
+                       r'within 0\.5 s \(--connect-timeout-s\)'):
+        run_sweep(linear_mc(samples=5), tmp_path, scheduler=f'tcp://127.0.0.1:{port}',
+                  connect_timeout_s=0.5, **QUIET)
+    assert time.monotonic() - t0 < 30        # not the old 30 s (generous: a loaded machine)

@@ -1,10 +1,9 @@
 """Per-model runners: same numbers as the models they wrap; failures become statuses."""
 
-import math
-
 import numpy as np
 import pytest
 
+from bb_friction_ros import paper
 from bb_friction_ros.ball_screw.module import solve_two_ball_module
 from bb_friction_ros.model_file import load_ball_screw
 from bb_friction_ros.config import load_linear_bearing
@@ -12,8 +11,9 @@ from bb_friction_ros.linear_bearing.case_study import LinearPairCase
 from bb_friction_ros.sweep.models import (FAILED, INVALID, MODELS, NONCONVERGED, OK, evaluate,
                                           run_linear_pair, screw_model, stroke_statistics,
                                           with_changes)
+from invariants import paper_approx
 
-THETA = math.radians(2.0)
+THETA = paper.TABLE1["theta_rad"]
 
 
 def run(model_name, base, params, **options):
@@ -29,11 +29,11 @@ def test_linear_pair_is_the_case_study():
     out, status, _ = run('linear_pair', cfg, {'theta_rad': THETA, 'rho': -0.6})
     ref = LinearPairCase(cfg).numerical(THETA, -0.6)
     assert status == OK
-    assert out['f_b2b_n'] == ref.f_b2b_n == pytest.approx(4.01, rel=0.02)
+    assert out['f_b2b_n'] == ref.f_b2b_n == paper_approx(paper.F_B2B_NUM)
     assert out['eps_diff'] == pytest.approx(ref.eps[0] - ref.eps[1])
     assert out['friction_ratio'] == pytest.approx((ref.p_f_w + ref.p_b2b_w) / ref.p_f_w)
     an, _, _ = run('linear_pair', cfg, {'theta_rad': THETA, 'rho': -0.6}, method='analytical')
-    assert an['f_b2b_n'] == pytest.approx(3.74, rel=0.01)
+    assert an['f_b2b_n'] == paper_approx(paper.F_B2B_AN)
 
 
 def test_independent_bottom_deviations_reduce_to_theta():
@@ -82,7 +82,7 @@ def test_converged_but_invalid_keeps_its_numbers(monkeypatch):
     out, status, reason = run('linear_pair', load_linear_bearing(), {'theta_rad': THETA,
                                                                      'rho': -0.6})
     assert status == INVALID and 'two-point' in reason
-    assert out['f_b2b_n'] == pytest.approx(4.01, rel=0.02)
+    assert out['f_b2b_n'] == paper_approx(paper.F_B2B_NUM)
 
 
 def test_nonconverged_sample_has_no_numbers(monkeypatch):

@@ -85,6 +85,18 @@ def test_screw_dotted_names_edge_units_and_integer_fields():
     assert 'track.n_balls' in spec.config_names
 
 
+def test_old_parameter_name_nut_speed_sweeps_nut_velocity_with_a_warning():
+    with pytest.warns(FutureWarning, match=r"sweep\.grid\.operation\.nut_speed_rad_s: renamed "
+                      r"to operation\.nut_velocity_rad_s"):
+        spec = spec_from_mapping({'model': 'screw_pair',
+                                  'grid': {'operation.nut_speed_rad_s': [-3.0, 3.0]}})
+    assert spec.grid[0].name == 'operation.nut_velocity_rad_s'
+    assert 'operation.nut_velocity_rad_s' in spec.config_names
+    with pytest.raises(ConfigError, match="unknown parameter") as err:
+        spec_from_mapping({'model': 'screw_pair', 'grid': {'operation.nut_spede': [1.0]}})
+    assert 'nut_speed_rad_s' not in str(err.value)       # the old name is not advertised
+
+
 def test_digest_tracks_what_changes_the_results():
     a, b = grid_spec(), grid_spec(name='renamed')
     assert a.digest() == b.digest()
