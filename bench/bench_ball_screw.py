@@ -12,15 +12,16 @@ on a shared machine vary by +-20 %: compare runs made back to back.
 
 import argparse
 import math
+import os
 import statistics
 import time
 
 import numpy as np
 
 from bb_friction_ros.ball_screw.module import solve_two_ball_module
-from bb_friction_ros.model_file import load_ball_screw
 from bb_friction_ros.ball_screw.screw_model import ScrewModel
 from bb_friction_ros.ball_screw.whole_screw import WholeScrew
+from bb_friction_ros.model_file import load_ball_screw
 
 
 def bench_pair(model, repeats):
@@ -36,20 +37,23 @@ def bench_pair(model, repeats):
     return out
 
 
-def bench_screw(model, n_balls, steps, realtime=0):
+def bench_screw(model, n_balls, steps, realtime=0, load_distribution="rigid"):
     """Median warm step time, iterations and per-iteration time for ``n_balls`` balls."""
     base = model.config
     turns = base.track.loaded_turns * n_balls / base.track.n_balls
     cfg = load_ball_screw(overrides={"track": {"n_balls": n_balls, "loaded_turns": turns},
-                                     "solver": {"realtime_max_iterations": realtime}})
+                                     "solver": {"realtime_max_iterations": realtime},
+                                     "load_distribution": load_distribution})
     screw = WholeScrew(cfg, model)
     op = cfg.operation
     dt = op.duration_s / op.n_steps
-    times, iters, groups, conv = [], [], [], []
+    times, iters, groups, conv, cpu = [], [], [], [], []
     for k in range(1, steps + 1):
+        c0 = time.thread_time()
         r = screw.step(op.nut_velocity_rad_s * k * dt, op.nut_velocity_rad_s,
                        op.axial_load_n * n_balls / base.track.n_balls, dt)
         if k > 1:                       # the first step is the cold start
+            cpu.append(time.thread_time() - c0)
             times.append(r.solve_time_s)
             iters.append(r.iterations)
             groups.append(r.n_groups)
@@ -58,6 +62,8 @@ def bench_screw(model, n_balls, steps, realtime=0):
     return {"median": float(np.median(times)), "p95": float(np.percentile(times, 95)),
             "it_median": float(np.median(iters)), "it_mean": float(iters.mean()),
             "per_it": float(np.median(times / np.maximum(iters, 1))),
+            # CPU time of the thread per iteration: less sensitive to a loaded machine
+            "cpu_per_it": float(np.sum(cpu) / max(np.sum(iters), 1)),
             "groups": max(groups), "unconverged": int(len(conv) - sum(conv))}
 
 
@@ -77,14 +83,37 @@ def main():
     for th, t in pair.items():
         print(f"  theta2 = {th:g} deg: {1e3 * t:7.2f} ms   (target <= 20 ms; paper 15.3 s)")
     print(f"whole screw, warm-started step, {args.steps} steps of 3.6 deg:")
-    print("      N   median [ms]  p95 [ms]  iterations (median/mean)  per iteration [ms]"
-          "  max groups")
-    for n in (37, 74, 148, 370):
-        r = bench_screw(model, n, args.steps)
-        print(f"  {n:5d}   {1e3 * r['median']:9.3f}  {1e3 * r['p95']:8.3f}"
-              f"  {r['it_median']:10.1f} / {r['it_mean']:4.2f}"
-              f"  {1e3 * r['per_it']:17.3f}  {r['groups']:10d}"
-              f"    (per ball {1e6 * r['median'] / n:.1f} us)")
+    print("  load distr.      N   median [ms]  p95 [ms]  iterations (median/mean)"
+          "  per iteration [ms]  max groups")
+    medians = {}
+    cpu_per_it = {}
+    for dist in ("rigid", "elastic"):
+        for n in (37, 74, 148, 370):
+            r = bench_screw(model, n, args.steps, load_distribution=dist)
+            medians[dist, n] = r["median"]
+            cpu_per_it[dist, n] = r["cpu_per_it"]
+            print(f"  {dist:9s}  {n:5d}   {1e3 * r['median']:9.3f}  {1e3 * r['p95']:8.3f}"
+                  f"  {r['it_median']:10.1f} / {r['it_mean']:4.2f}"
+                  f"  {1e3 * r['per_it']:17.3f}  {r['groups']:10d}"
+                  f"    (per ball {1e6 * r['median'] / n:.1f} us)")
+    print("  elastic / rigid step time (same run): "
+          + ", ".join(f"N={n}: {medians['elastic', n] / medians['rigid', n]:.2f}"
+                      for n in (37, 74, 148, 370))
+          + "   [goal: elastic <= 1 ms at N = 37, linear in N]")
+    print("  CPU time per Newton iteration and ball [us] (thread time; 1.0 ratio = linear):")
+    for dist in ("rigid", "elastic"):
+        per = [cpu_per_it[dist, n] / n * 1e6 for n in (37, 74, 148, 370)]
+        cells = "  ".join(f"N={n}: {p:5.2f}" for n, p in zip((37, 74, 148, 370), per))
+        print(f"    {dist:8s} {cells}   N=370 / N=37: {per[-1] / per[0]:.2f}")
+    if model.solver.use_kernel:
+        model.solver.use_kernel = False
+        ref = bench_screw(model, 37, min(args.steps, 30))
+        model.solver.use_kernel = True
+        print(f"  in-run baseline, numpy solver path, rigid, N = 37: median "
+              f"{1e3 * ref['median']:.3f} ms -> kernel rigid "
+              f"{ref['median'] / medians['rigid', 37]:.1f}x, kernel elastic "
+              f"{ref['median'] / medians['elastic', 37]:.1f}x faster")
+    print(f"  machine load {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
     print("real-time mode (solver.realtime_max_iterations), N = 37:")
     for cap in (4, 6):
         r = bench_screw(model, 37, args.steps, realtime=cap)

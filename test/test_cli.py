@@ -67,6 +67,19 @@ def test_reproduce_writes_report(tmp_path, capsys):
         assert (tmp_path / f"{name}.png").stat().st_size > 10_000
     report = (tmp_path / "report.md").read_text()
     assert "| f_num |" in report and "| (+-10 %) |" in report
+    # Ball screw (issue 15): both load distributions, and the whole theta-amplitude sweep
+    # with the calibrated amplitude and its figure.
+    screw = {r["quantity"] for r in data["Ball screw (Sec. 3)"]}
+    for dist in ("rigid", "elastic"):
+        assert f"Fig. 21 peak B2B torque / ball-groove torque ({dist})" in screw
+    theta = data["Ball screw: the unstated theta amplitude of Fig. 19 (sweep)"]
+    cal = {r["quantity"]: r for r in theta}
+    assert cal["theta amplitude at peak share 49.6 % (elastic)"]["ours"] == \
+        pytest.approx(3.44, abs=0.05)
+    assert sum(r["quantity"].startswith("sweep ") for r in theta) == 26
+    assert (tmp_path / "fig21_theta_sweep.png").stat().st_size > 10_000
+    assert (tmp_path / "elastic" / "fig21_torque_split.png").exists()
+    assert {"Load range: largest contact load", "Load range: largest axial load"} <= screw
 
 
 def test_every_documented_command_is_registered(capsys):

@@ -37,6 +37,8 @@ import math
 
 import numpy as np
 
+from bb_friction_ros.ball_screw.single_ball import LENGTH_SCALE_M
+
 try:
     import numba
     HAVE_NUMBA = True
@@ -100,11 +102,13 @@ def _map_eval(coef, t, h, n_pol, n_az, dtm, dhm, val, dvt, dvh):
 
 
 @_jit
-def evaluate_balls(x, u, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid,
-                   scale, want_jac, res, jac, dax, terms, per_contact):
+def evaluate_balls(x, u, u_ball, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
+                   grid, scale, want_jac, res, jac, dax, terms, per_contact):
     """
     Ball-groove residuals of all balls (``single_ball.BallGrooveModel.evaluate``).
 
+    The nut displacement at ball i is u + u_ball[i] (u_ball = 0 for a rigid nut and shaft;
+    the elastic load distribution gives each ball its own).
     cst = (lambda, R_B, cos a, sin a, l, mu, free distance, r_gear); grid = (n_polar,
     n_azimuth, dt, dh).  Writes res (N, 6) = [force, moment / R_B] / scale, jac (N, 6, 7),
     dax (N, 7) = d(axial) / scale; terms (N, 10) = force (3), moment (3), loss, nut torque,
@@ -125,6 +129,7 @@ def evaluate_balls(x, u, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coe
     nb = x.shape[0]
     for i in range(nb):
         x0, x1, wb, ox, oy, oz = x[i, 0], x[i, 1], x[i, 2], x[i, 3], x[i, 4], x[i, 5]
+        ui = u + u_ball[i]
         for r in range(10):
             terms[i, r] = 0.0
         for r in range(6):
@@ -141,7 +146,7 @@ def evaluate_balls(x, u, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coe
             kl = k_load[k]
             ka = k_axis[k]
             dxv = lam * x0 - centres[i, k, 0]
-            dzv = lam * x1 - centres[i, k, 1] - g * (lam * ca * u)
+            dzv = lam * x1 - centres[i, k, 1] - g * (lam * ca * ui)
             dist = math.hypot(dxv, dzv)
             nx = dxv / dist
             nz = dzv / dist
@@ -534,8 +539,9 @@ def _residual(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, co
               scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, res, jac, dax, terms,
               per_contact, g_r, g_f, speed, dgr_r, dgr_f, dgf_r, dgf_f, cons, want_jac):
     """Full residual (balls + B2B + axial + equal rates) and Jacobian; returns (axial, norm)."""
-    ax = evaluate_balls(x, u, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
-                        grid, scale, want_jac, res, jac, dax, terms, per_contact)
+    ax = evaluate_balls(x, u, np.zeros(x.shape[0]), centres, sign, cst, k_load, k_axis,
+                        on_nut, coef_s, coef_n, grid, scale, want_jac, res, jac, dax, terms,
+                        per_contact)
     b2b_terms(x, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, want_jac, g_r, g_f, speed, dgr_r,
               dgr_f, dgf_r, dgf_f)
     for c in range(rear.shape[0]):
@@ -778,3 +784,356 @@ def theta_centres(phi, amplitude, cycles, phase, offset, eccentricity, beta0):
         out[i, 3, 0] = -cb
         out[i, 3, 1] = sb
     return theta, out
+
+
+# --- Elastic load distribution (shaft and nut deform axially between balls; ref. [19]) ---
+#
+# Unknowns per ball b_k, in axial order k = 0..N-1 along the nut (``order``): its six states,
+# its own nut displacement v_k (u of the rigid model, now per ball) and the cumulative load
+# C_k = P_0 + ... + P_k carried into the nut by balls 0..k (P = -axial, scaled by ``scale``).
+# Equations per ball: its six equilibrium equations; load transfer C_k - C_{k-1} - P_k = 0;
+# compatibility of the two bars between balls k and k+1,
+#     v_{k+1} - v_k = comp_a[k] - comp_b[k] C_k              (k < N-1)
+# (``whole_screw.ElasticLoadPath`` derives comp_a, comp_b), and C_{N-1} = W at the last ball.
+# Every row involves only blocks k-1, k, k+1: the Newton system is block tridiagonal in axial
+# order (9 x 9 blocks: six states, v, C and the force of the B2B contact behind ball k).  A
+# B2B contact across the return tube (between the last and the first ball) is the one
+# border unknown.  The cost per iteration stays linear in N.
+
+
+@_jit
+def _elastic_blocks(order, pos, rear, front, n):
+    """Active pair behind / ahead of each axial position, and the return-tube pair (or -1)."""
+    behind = np.full(n, -1, dtype=np.int64)
+    ahead = np.full(n, -1, dtype=np.int64)
+    wrap = -1
+    for c in range(rear.shape[0]):
+        r = rear[c]
+        f = front[c]
+        if (r + 1) % n == f:
+            lo, hi = r, f
+        else:
+            lo, hi = f, r
+        if pos[hi] == 0:
+            wrap = c
+        else:
+            behind[pos[hi]] = c
+            ahead[pos[lo]] = c
+    return behind, ahead, wrap
+
+
+@_jit
+def _elastic_residual(x, v, cum, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
+                      coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f,
+                      order, comp_a, comp_b, res, jac, dax, terms, per_contact, g_r, g_f,
+                      speed, dgr_r, dgr_f, dgf_r, dgf_f, cons, tr, cp, want_jac):
+    """Residuals of the elastic system (see above) and the Jacobian pieces; returns the norm."""
+    evaluate_balls(x, 0.0, v, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
+                   grid, scale, want_jac, res, jac, dax, terms, per_contact)
+    b2b_terms(x, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, want_jac, g_r, g_f, speed, dgr_r,
+              dgr_f, dgf_r, dgf_f)
+    for c in range(rear.shape[0]):
+        r = rear[c]
+        f = front[c]
+        for j in range(6):
+            res[r, j] += g_r[c, j] * fhat[c]
+            res[f, j] += g_f[c, j] * fhat[c]
+        cons[c] = x[r, 2] - x[f, 2]
+    n = x.shape[0]
+    inv_s = 1.0 / scale
+    for k in range(n):
+        b = order[k]
+        tr[k] = cum[k] - (cum[k - 1] if k > 0 else 0.0) + terms[b, 8] * inv_s
+        if k < n - 1:
+            cp[k] = v[order[k + 1]] - v[b] - comp_a[k] + comp_b[k] * cum[k]
+        else:
+            cp[k] = cum[k] - axial_load_n * inv_s
+    norm = 0.0
+    for i in range(n):
+        for j in range(6):
+            val = abs(res[i, j])
+            if val > norm or val != val:
+                norm = val
+        for val in (abs(tr[i]), abs(cp[i])):
+            if val > norm or val != val:
+                norm = val
+    for c in range(rear.shape[0]):
+        val = abs(cons[c])
+        if val > norm or val != val:
+            norm = val
+    return norm
+
+
+@_jit
+def _role(c, b, rear, g_r, g_f, dgr_r, dgr_f, dgf_r, dgf_f, gv, d_own, d_other):
+    """Unit-force terms of contact c on ball b (rear or front) and their state derivatives."""
+    if rear[c] == b:
+        for r in range(6):
+            gv[r] = g_r[c, r]
+            for j in range(6):
+                d_own[r, j] = dgr_r[c, r, j]
+                d_other[r, j] = dgr_f[c, r, j]
+        return 1.0
+    for r in range(6):
+        gv[r] = g_f[c, r]
+        for j in range(6):
+            d_own[r, j] = dgf_f[c, r, j]
+            d_other[r, j] = dgf_r[c, r, j]
+    return -1.0
+
+
+@_jit
+def elastic_direction(order, behind, ahead, wrap, rear, jac, dax, res, tr, cp, cons, fhat,
+                      comp_b, g_r, g_f, dgr_r, dgr_f, dgf_r, dgf_f, xs, ys, dx, dv, dcum, df):
+    """
+    Newton step of the elastic system.
+
+    A block Thomas sweep in axial order with the return-tube contact as a border.  The
+    derivatives of that one contact's friction
+    direction with respect to the other ball are left out of the Jacobian (its residual
+    stays exact; only that contact converges linearly).  Returns the border force step.
+
+    xs (N, 9, 11) and ys (N, 9, 2): work arrays.  Writes dx (N, 6), dv (N,), dcum (N,),
+    df (K,).
+    """
+    n = order.shape[0]
+    d = np.empty((9, 9))
+    w = np.empty((9, 11))
+    d0 = np.empty((9, 9))
+    w0 = np.empty((9, 11))
+    lm = np.zeros((9, 9))
+    gv = np.empty(6)
+    d_own = np.empty((6, 6))
+    d_other = np.empty((6, 6))
+    for k in range(n):
+        b = order[k]
+        for r in range(9):
+            for j in range(9):
+                d[r, j] = 0.0
+                lm[r, j] = 0.0
+            for j in range(11):
+                w[r, j] = 0.0
+        for r in range(6):
+            for j in range(7):
+                d[r, j] = jac[b, r, j]
+            w[r, 9] = res[b, r]
+        for j in range(7):
+            d[6, j] = dax[b, j]
+        d[6, 7] = 1.0
+        if k > 0:
+            lm[6, 7] = -1.0
+        w[6, 9] = tr[k]
+        if k < n - 1:
+            d[7, 6] = -1.0
+            d[7, 7] = comp_b[k]
+            w[7, 6] = 1.0          # U block: v of the next ball
+        else:
+            d[7, 7] = 1.0
+        w[7, 9] = cp[k]
+        c = behind[k]
+        if c >= 0:
+            fc = fhat[c]
+            s_rear = _role(c, b, rear, g_r, g_f, dgr_r, dgr_f, dgf_r, dgf_f, gv, d_own,
+                           d_other)
+            for r in range(6):
+                d[r, 8] = gv[r]
+                for j in range(6):
+                    d[r, j] += fc * d_own[r, j]
+                    lm[r, j] = fc * d_other[r, j]
+            # equal orbit rates: x_rear[2] - x_front[2] = 0
+            d[8, 2] = s_rear
+            lm[8, 2] = -s_rear
+            w[8, 9] = cons[c]
+        else:
+            d[8, 8] = 1.0
+        c = ahead[k]
+        if c >= 0:
+            fc = fhat[c]
+            _role(c, b, rear, g_r, g_f, dgr_r, dgr_f, dgf_r, dgf_f, gv, d_own, d_other)
+            for r in range(6):
+                w[r, 8] = gv[r]    # U block: force of the contact ahead (next block)
+                for j in range(6):
+                    d[r, j] += fc * d_own[r, j]
+                    w[r, j] = fc * d_other[r, j]
+        if wrap >= 0 and (k == 0 or k == n - 1):
+            fc = fhat[wrap]
+            _role(wrap, b, rear, g_r, g_f, dgr_r, dgr_f, dgf_r, dgf_f, gv, d_own, d_other)
+            for r in range(6):
+                w[r, 10] = gv[r]
+                for j in range(6):
+                    d[r, j] += fc * d_own[r, j]
+        if k > 0:
+            # L is sparse: the load-transfer row on C_{k-1} always; with a B2B contact
+            # behind, the ball rows on the previous ball's states and the equal-rate row.
+            for j in range(11):
+                if j < 9:
+                    d[6, j] += xs[k - 1, 7, j]
+                else:
+                    w[6, j] += xs[k - 1, 7, j]
+            if behind[k] >= 0:
+                for r in range(6):
+                    for j in range(11):
+                        acc = 0.0
+                        for m in range(6):
+                            acc += lm[r, m] * xs[k - 1, m, j]
+                        if j < 9:
+                            d[r, j] -= acc
+                        else:
+                            w[r, j] -= acc
+                for j in range(11):
+                    acc = lm[8, 2] * xs[k - 1, 2, j]
+                    if j < 9:
+                        d[8, j] -= acc
+                    else:
+                        w[8, j] -= acc
+        _gauss(d, w, 9, 0, d0, w0)
+        for r in range(9):
+            for j in range(11):
+                xs[k, r, j] = w[r, j]
+    for k in range(n - 1, -1, -1):
+        for r in range(9):
+            yv = xs[k, r, 9]
+            zv = xs[k, r, 10]
+            if k < n - 1:
+                for m in range(9):
+                    yv -= xs[k, r, m] * ys[k + 1, m, 0]
+                    zv -= xs[k, r, m] * ys[k + 1, m, 1]
+            ys[k, r, 0] = yv
+            ys[k, r, 1] = zv
+    dfw = 0.0
+    if wrap >= 0:
+        # Border row: equal orbit rates across the return tube (rear minus front).
+        kr = 0 if rear[wrap] == order[0] else n - 1
+        kf = n - 1 - kr
+        row_y = ys[kr, 2, 0] - ys[kf, 2, 0]
+        row_z = ys[kr, 2, 1] - ys[kf, 2, 1]
+        dfw = (cons[wrap] - row_y) / row_z
+        df[wrap] = dfw
+    for k in range(n):
+        b = order[k]
+        for r in range(6):
+            dx[b, r] = -(ys[k, r, 0] + ys[k, r, 1] * dfw)
+        dv[b] = -(ys[k, 6, 0] + ys[k, 6, 1] * dfw)
+        dcum[k] = -(ys[k, 7, 0] + ys[k, 7, 1] * dfw)
+        c = behind[k]
+        if c >= 0:
+            df[c] = -(ys[k, 8, 0] + ys[k, 8, 1] * dfw)
+    return dfw
+
+
+@_jit
+def _alloc_elastic(n, kc):
+    """Work arrays of one elastic residual evaluation (see ``_elastic_residual``)."""
+    return (np.empty((n, 6)), np.empty((n, 6, 7)), np.empty((n, 7)), np.empty((n, 10)),
+            np.empty((n, 4, 3)), np.empty((kc, 6)), np.empty((kc, 6)), np.empty(kc),
+            np.empty((kc, 6, 6)), np.empty((kc, 6, 6)), np.empty((kc, 6, 6)),
+            np.empty((kc, 6, 6)), np.empty(kc), np.empty(n), np.empty(n))
+
+
+@_jit
+def solve_active_elastic(x, v, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
+                         coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r,
+                         k_f, order, comp_a, comp_b, tol, max_it, max_rate, disp_limit):
+    """
+    ``solve_active`` for the elastic load distribution: v (N,) per-ball nut displacements.
+
+    Same trust region and line search.  The cumulative loads start from the balls' current
+    axial forces.  Returns (x, v, fhat, ok, iterations, norm, terms, per_contact, speed).
+    """
+    n = x.shape[0]
+    kc = rear.shape[0]
+    cur = _alloc_elastic(n, kc)
+    trial = _alloc_elastic(n, kc)
+    x = x.copy()
+    v = v.copy()
+    fhat = fhat.copy()
+    evaluate_balls(x, 0.0, v, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
+                   grid, scale, False, cur[0], cur[1], cur[2], cur[3], cur[4])
+    cum = np.empty(n)
+    acc = 0.0
+    for k in range(n):
+        acc -= cur[3][order[k], 8] / scale
+        cum[k] = acc
+    pos = np.empty(n, dtype=np.int64)
+    for k in range(n):
+        pos[order[k]] = k
+    behind, ahead, wrap = _elastic_blocks(order, pos, rear, front, n)
+    norm = _elastic_residual(x, v, cum, fhat, centres, sign, cst, k_load, k_axis, on_nut,
+                             coef_s, coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f, c_r,
+                             c_f, k_r, k_f, order, comp_a, comp_b, cur[0], cur[1], cur[2],
+                             cur[3], cur[4], cur[5], cur[6], cur[7], cur[8], cur[9], cur[10],
+                             cur[11], cur[12], cur[13], cur[14], True)
+    xs = np.empty((n, 9, 11))
+    ys = np.empty((n, 9, 2))
+    dx = np.empty((n, 6))
+    dv = np.empty(n)
+    dcum = np.empty(n)
+    df = np.zeros(kc)
+    xn = np.empty((n, 6))
+    vn = np.empty(n)
+    cn = np.empty(n)
+    fn = np.empty(kc)
+    it = 0
+    while norm > tol and it < max_it:
+        it += 1
+        elastic_direction(order, behind, ahead, wrap, rear, cur[1], cur[2], cur[0], cur[13],
+                          cur[14], cur[12], fhat, comp_b, cur[5], cur[6], cur[8], cur[9],
+                          cur[10], cur[11], xs, ys, dx, dv, dcum, df)
+        big_r = 0.0
+        big_d = 0.0
+        for i in range(n):
+            big_d = max(big_d, abs(dv[i]))
+            for j in range(2):
+                big_d = max(big_d, abs(dx[i, j]))
+            for j in range(2, 6):
+                big_r = max(big_r, abs(dx[i, j]))
+        big = max(big_r / max_rate, big_d / disp_limit)
+        if not math.isfinite(big):
+            return x, v, fhat, False, it, norm, cur[3], cur[4], cur[7]
+        step = 1.0 / big if big > 1.0 else 1.0
+        nn = norm
+        last = norm * norm * 1e3 <= tol
+        for _ in range(_N_TRIAL):
+            for i in range(n):
+                for j in range(6):
+                    xn[i, j] = x[i, j] + step * dx[i, j]
+                vn[i] = v[i] + step * dv[i]
+                cn[i] = cum[i] + step * dcum[i]
+            for c in range(kc):
+                fn[c] = fhat[c] + step * df[c]
+            nn = _elastic_residual(xn, vn, cn, fn, centres, sign, cst, k_load, k_axis,
+                                   on_nut, coef_s, coef_n, grid, scale, axial_load_n, rear, front,
+                                   b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b,
+                                   trial[0], trial[1], trial[2], trial[3], trial[4],
+                                   trial[5], trial[6], trial[7], trial[8], trial[9],
+                                   trial[10], trial[11], trial[12], trial[13], trial[14],
+                                   not last)
+            if math.isfinite(nn) and (nn < norm or nn <= tol):
+                break
+            step *= 0.5
+        if last and not nn <= tol:
+            nn = _elastic_residual(xn, vn, cn, fn, centres, sign, cst, k_load, k_axis,
+                                   on_nut, coef_s, coef_n, grid, scale, axial_load_n, rear, front,
+                                   b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b,
+                                   trial[0], trial[1], trial[2], trial[3], trial[4],
+                                   trial[5], trial[6], trial[7], trial[8], trial[9],
+                                   trial[10], trial[11], trial[12], trial[13], trial[14],
+                                   True)
+        x, xn = xn, x
+        v, vn = vn, v
+        cum, cn = cn, cum
+        fhat, fn = fn, fhat
+        norm = nn
+        cur, trial = trial, cur
+    return x, v, fhat, norm <= tol, it, norm, cur[3], cur[4], cur[7]
+
+
+def pack_constants(ball, extra_oversize_m=0.0):
+    """
+    Pack the kernels' constant vector ``cst`` from a ``single_ball.BallGrooveModel``.
+
+    (lambda, R_B, cos alpha, sin alpha, l = L/2pi, mu, ball-arc free distance, p/2pi); a
+    temporary extra oversize (cold-start continuation) shortens the free distance.
+    """
+    return np.array([LENGTH_SCALE_M, ball.r_b, ball.cos_a, ball.sin_a, ball.ell, ball.mu,
+                     ball.free_distance - 0.5 * extra_oversize_m, ball.r_gear])

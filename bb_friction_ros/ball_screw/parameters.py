@@ -59,10 +59,11 @@ class GeometricErrors:
     ball centre, beta_SL = beta_0 - theta, beta_SR = beta_0 + theta.
     """
 
-    theta_amplitude_rad: float = field(3.0 * _DEG, "rad", "amplitude of the sinusoidal "
+    theta_amplitude_rad: float = field(3.44 * _DEG, "rad", "amplitude of the sinusoidal "
                                        "screw contact-angle deviation theta(phi) (Fig. 19; "
-                                       "not given in the paper, see docs)", lo=0.0,
-                                       hi=10.0 * _DEG)
+                                       "not given in the paper: calibrated to Fig. 21's "
+                                       "peak B2B share by the bundled sweep, see docs)",
+                                       lo=0.0, hi=10.0 * _DEG)
     theta_cycles_per_rev: float = field(2.0, "1", "cycles of theta per screw revolution "
                                         "(four cycles over the two loaded turns)", lo=0.0,
                                         hi=100.0)
@@ -164,6 +165,63 @@ class SolverSettings:
 
 
 @dataclasses.dataclass(frozen=True)
+class ValidityRange:
+    """
+    The loads inside which the model's assumptions hold (docs/assumptions_ball_screw.md).
+
+    The smaller of the two contact loads they allow is the model's limit; a whole-screw step
+    whose mean contact load exceeds it is not solved, and a solution with any contact above
+    it is flagged (``StepResult.in_load_range``).
+    """
+
+    max_contact_semi_axis_ratio: float = field(0.2, "1", "largest Hertz semi-major axis "
+                                               "over the ball radius, a / R_B: the planar "
+                                               "contact of Sec. 3.1 ('small compared with the "
+                                               "ball radius')", lo=0.0, lo_open=True, hi=1.0)
+    max_hertz_pressure_pa: float = field(4.2e9, "Pa", "largest Hertz peak pressure: 4.2 GPa "
+                                         "is the static load rating's criterion for ball "
+                                         "contacts (ISO 76, ISO 3408-5); above it the steel "
+                                         "yields and elastic Hertz theory ends", lo=0.0,
+                                         lo_open=True)
+
+
+LOAD_DISTRIBUTIONS = ("rigid", "elastic")
+SHAFT_LOAD_ENDS = ("track_start", "track_end")
+NUT_SUPPORTS = ("outer_surface", "flange_at_track_start", "flange_at_track_end")
+
+
+@dataclasses.dataclass(frozen=True)
+class ElasticBodies:
+    """
+    Bulk axial deformation of screw shaft and nut (``load_distribution: elastic``; ref. [19]).
+
+    Shaft and nut are axial bars between neighbouring balls: the stiffness of a segment one
+    ball pitch long is E A / (ball pitch), with E A the axial rigidity below.  Defaults:
+    Sec. 3.4's set-up (docs/assumptions_ball_screw.md, "Elastic load distribution").
+    """
+
+    shaft_axial_rigidity_n: float = field(1.2262e8, "N", "axial rigidity E A of the screw "
+                                          "shaft (E = 210 GPa, root diameter 27.27 mm of "
+                                          "the Table 4 Gothic-arch groove)", lo=0.0,
+                                          lo_open=True)
+    nut_axial_rigidity_n: float = field(2.6979e8, "N", "axial rigidity E A of the nut body "
+                                        "(E = 210 GPa, outer diameter 56 mm, groove root "
+                                        "diameter 38.73 mm; used with a flange support)",
+                                        lo=0.0, lo_open=True)
+    shaft_load_end: str = dataclasses.field(default="track_start")
+    nut_support: str = dataclasses.field(default="outer_surface")
+
+    def check(self, path):
+        """Check the two choices by name."""
+        if self.shaft_load_end not in SHAFT_LOAD_ENDS:
+            raise ConfigError(f"{path}.shaft_load_end: must be one of "
+                              f"{', '.join(SHAFT_LOAD_ENDS)}, got {self.shaft_load_end!r}")
+        if self.nut_support not in NUT_SUPPORTS:
+            raise ConfigError(f"{path}.nut_support: must be one of {', '.join(NUT_SUPPORTS)}"
+                              f", got {self.nut_support!r}")
+
+
+@dataclasses.dataclass(frozen=True)
 class BallScrewConfig:
     """Complete ball screw configuration (key ``ball_screw`` of config/ball_screw.yaml)."""
 
@@ -173,3 +231,15 @@ class BallScrewConfig:
     track: NutTrack = dataclasses.field(default_factory=NutTrack)
     operation: Operation = dataclasses.field(default_factory=Operation)
     solver: SolverSettings = dataclasses.field(default_factory=SolverSettings)
+    elastic: ElasticBodies = dataclasses.field(default_factory=ElasticBodies)
+    validity: ValidityRange = dataclasses.field(default_factory=ValidityRange)
+    # 'rigid': rigid nut and shaft, all balls share W through one nut displacement;
+    # 'elastic': shaft and nut deform axially between balls (ref. [19]), see ElasticBodies.
+    load_distribution: str = dataclasses.field(default="rigid")
+
+    def check(self, path):
+        """``load_distribution`` is one of the named models."""
+        if self.load_distribution not in LOAD_DISTRIBUTIONS:
+            raise ConfigError(f"{path}.load_distribution: must be one of "
+                              f"{', '.join(LOAD_DISTRIBUTIONS)}, got "
+                              f"{self.load_distribution!r}")

@@ -1,12 +1,12 @@
 """
 Ball screw model objects and the robust cold start of the ball equilibrium.
 
-With zero preload the balls are in three-point contact (notes): the spin about the loaded
-diagonal is only weakly determined and Newton from a two-point guess can run away.  A cold
-start therefore solves one ball with theta = 0 at a reference load per ball, continues in the
-load (displacements scale as W^(2/3)) to the actual load, copies the state to every ball and
-continues theta (and the lead errors) from zero to their actual values with all balls
-coupled.  Every continuation step is a converged Newton solve.
+With zero preload the balls are in three-point contact (docs/assumptions_ball_screw.md): the
+spin about the loaded diagonal is only weakly determined and Newton from a two-point guess can
+run away.  A cold start therefore solves one ball with theta = 0 at a reference load per
+ball, continues in the load (displacements scale as W^(2/3)) to the actual load, copies the
+state to every ball and continues theta (and the lead errors) from zero to their actual
+values with all balls coupled.  Every continuation step is a converged Newton solve.
 
 References
 ----------
@@ -41,6 +41,35 @@ class ScrewModel:
         b = self.ball
         delta = max(b.r_groove - b.r_b - b.free_distance, 0.0)
         return float(b.k_load[0] * delta ** 1.5)
+
+    def max_contact_load_n(self):
+        """
+        Largest contact load [N] inside the model's range (``config.validity``).
+
+        Per contact type (screw, nut), the load at which the Hertz semi-major axis reaches
+        ``max_contact_semi_axis_ratio`` R_B, a = k_a Q^(1/3), and the one at which the peak
+        pressure p0 = 3 Q / (2 pi a b) = 3 Q^(1/3) / (2 pi kappa k_a^2) reaches
+        ``max_hertz_pressure_pa``; the smallest of the four.
+        """
+        v = self.config.validity
+        r_b = self.ball.r_b
+        limits = []
+        for h in self.ball.hertz:
+            k_a = h.coef_a_m_per_n13
+            limits.append((v.max_contact_semi_axis_ratio * r_b / k_a) ** 3)
+            limits.append((v.max_hertz_pressure_pa * 2.0 * math.pi * h.ellipticity
+                           * k_a * k_a / 3.0) ** 3)
+        return float(min(limits))
+
+    def max_axial_load_n(self, n_balls):
+        """
+        Axial load [N] at which the MEAN contact load of ``n_balls`` reaches the limit.
+
+        Mean contact load of the loaded diagonal: |W| / (N cos(alpha) sin(beta_0)).  With
+        geometric errors some balls carry more, so solutions are also checked ball by ball.
+        """
+        b = self.ball
+        return self.max_contact_load_n() * n_balls * b.cos_a * math.sin(b.beta0)
 
     def force_scale(self, n_balls, axial_load_n):
         """Residual force scale [N]: the larger of the mean axial load per ball and preload."""

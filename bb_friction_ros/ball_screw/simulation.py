@@ -58,6 +58,30 @@ def run_whole_screw(config, n_steps=None, screw=None):
             for k in range(1, steps + 1)], screw
 
 
+def fig21_features(nut_angle_rad, torque_b2g_nm, torque_b2b_nm, n_groups):
+    """
+    Compute the features of Figs. 20-21 that the paper states from a run's series (SI).
+
+    Returns peak_b2b_share (largest T_B2B / T_B2G; paper 49.6 %), peak_b2b_nut_angle_rad
+    (where; paper 126 deg), b2b_zero_nut_angle_rad (first nut angle after the peak with no
+    B2B torque; paper 306 deg; NaN if B2B never vanishes), max_groups (paper 4) and
+    b2g_torque_variation ((max - min) / mean |T_B2G|; paper: "barely has variation").
+    """
+    angle = np.asarray(nut_angle_rad, dtype=float)
+    b2g = np.asarray(torque_b2g_nm, dtype=float)
+    b2b = np.asarray(torque_b2b_nm, dtype=float)
+    share = np.divide(b2b, b2g, out=np.zeros_like(b2b), where=b2g != 0.0)
+    k = int(np.argmax(share))
+    after = np.flatnonzero((np.arange(share.size) > k) & (share <= 0.0))
+    return {
+        "peak_b2b_share": float(share[k]),
+        "peak_b2b_nut_angle_rad": float(angle[k]),
+        "b2b_zero_nut_angle_rad": float(angle[after[0]]) if after.size else math.nan,
+        "max_groups": int(np.max(n_groups)),
+        "b2g_torque_variation": float((b2g.max() - b2g.min()) / np.mean(np.abs(b2g))),
+    }
+
+
 def summarize(results, separation_rad):
     """
     Figures of merit of a run (Fig. 21's peak B2B share and where B2B vanishes).
@@ -75,27 +99,25 @@ def summarize(results, separation_rad):
         ``peak_b2b_share`` (T_b2b / T_b2g, fraction), ``peak_b2b_nut_angle_deg``,
         ``b2b_zero_nut_angle_deg`` [deg], ``max_groups``, ``step_time_median_s`` [s],
         ``max_power_balance_error`` [1], ``all_converged``, ``b2g_torque_variation``
-        (fraction) and more.
+        (fraction) and more (``fig21_features``).
 
     """
-    angle = np.degrees([r.nut_angle_rad for r in results])
-    b2g = np.array([r.torque_b2g_nm for r in results])
-    b2b = np.array([r.torque_b2b_nm for r in results])
-    share = np.divide(b2b, b2g, out=np.zeros_like(b2b), where=b2g != 0.0)
-    k = int(np.argmax(share))
-    after = np.flatnonzero((np.arange(share.size) > k) & (share <= 0.0))
+    f21 = fig21_features([r.nut_angle_rad for r in results],
+                         [r.torque_b2g_nm for r in results],
+                         [r.torque_b2b_nm for r in results], [r.n_groups for r in results])
+    zero = f21["b2b_zero_nut_angle_rad"]
     times = np.array([r.solve_time_s for r in results])
     return {
-        "peak_b2b_share": float(share[k]),
-        "peak_b2b_nut_angle_deg": float(angle[k]),
-        "b2b_zero_nut_angle_deg": float(angle[after[0]]) if after.size else None,
-        "max_groups": int(max(r.n_groups for r in results)),
+        "peak_b2b_share": f21["peak_b2b_share"],
+        "peak_b2b_nut_angle_deg": math.degrees(f21["peak_b2b_nut_angle_rad"]),
+        "b2b_zero_nut_angle_deg": None if math.isnan(zero) else math.degrees(zero),
+        "max_groups": f21["max_groups"],
         "step_time_median_s": float(np.median(times)),
         "step_time_median_warm_s": float(np.median(times[1:])) if times.size > 1
         else float(times[0]),
         "max_power_balance_error": float(max(r.power_balance_error for r in results)),
         "all_converged": bool(all(r.converged for r in results)),
-        "b2g_torque_variation": float((b2g.max() - b2g.min()) / np.mean(np.abs(b2g))),
+        "b2g_torque_variation": f21["b2g_torque_variation"],
         "n_steps": len(results),
         "b2b_contact_separation_deg": math.degrees(separation_rad),
     }

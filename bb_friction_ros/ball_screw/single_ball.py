@@ -193,7 +193,7 @@ class BallGrooveModel:
         return out
 
     def rolling_guess(self, n_balls, sign, loaded_sl_nr=True):
-        """Start state: rolling without slip on the loaded diagonal (notes' advice 5)."""
+        """Start state: rolling without slip on the loaded diagonal, spin along z_3."""
         cb = math.cos(self.beta0)
         wb = sign * (0.5 + self.r_b * self.cos_a * cb / (2.0 * self.ell))
         x = np.zeros((n_balls, N_STATE))

@@ -185,7 +185,9 @@ class EquilibriumSolver:
 
         Rates frozen; unknowns (xi, zeta) per ball and u; equations F_x, F_z per ball and the
         axial balance.  Brings the ball into its (three-point) contact state before the
-        weakly determined spin about the loaded diagonal is touched (notes' advice 1-3).
+        weakly determined spin about the loaded diagonal is touched (geometry first with mu = 0
+        and the rates frozen, then the rates, then everything: the order that converged for an
+        independent re-implementation, docs/assumptions_ball_screw.md, Solver).
         """
         st = self.settings
         rows, cols = [0, 2], [0, 1]
@@ -239,8 +241,13 @@ class EquilibriumSolver:
                           np.zeros(0, dtype=bool))
 
     def _solve_active_kernel(self, x, u, f_hat, centres, sign, axial_load_n, scale, rear, front,
-                             max_iterations):
-        """``solve_active`` through the compiled kernel (``kernel.solve_active``)."""
+                             max_iterations, elastic=None):
+        """
+        ``solve_active`` through the compiled kernel (``kernel.solve_active``).
+
+        With ``elastic`` = (order, comp_a, comp_b) (``load_distribution.ElasticLoadPath``)
+        u is the per-ball nut displacement (N,) and ``kernel.solve_active_elastic`` solves.
+        """
         st = self.settings
         b = self.ball
         # The kernel does not check bounds: refuse mismatched arrays here rather than read
@@ -252,33 +259,42 @@ class EquilibriumSolver:
                              f"centres, {np.size(rear)} pairs, {np.size(f_hat)} forces")
         cst = self._cst.get(self.extra_oversize_m)
         if cst is None:
-            cst = np.array([LENGTH_SCALE_M, b.r_b, b.cos_a, b.sin_a, b.ell, b.mu,
-                            b.free_distance - 0.5 * self.extra_oversize_m, b.r_gear])
+            cst = kernel.pack_constants(b, self.extra_oversize_m)
             if len(self._cst) < 64:
                 self._cst[self.extra_oversize_m] = cst
         disp_limit = max(self.disp_limit, self._approach_units(scale))
-        x, u, f_hat, ok, it, norm, terms, per_contact, speed = kernel.solve_active(
-            np.ascontiguousarray(x, dtype=float), float(u),
-            np.ascontiguousarray(f_hat, dtype=float),
-            np.ascontiguousarray(centres, dtype=float), float(sign), cst, self._k_load,
-            self._k_axis, self._on_nut, self._coef[0], self._coef[1], self._grid,
-            float(scale), float(axial_load_n), np.ascontiguousarray(rear, dtype=np.int64),
-            np.ascontiguousarray(front, dtype=np.int64), *self.b2b.linear_terms(sign),
-            float(st.tolerance), int(max_iterations), float(st.max_step_rate),
-            float(disp_limit))
+        common = (np.ascontiguousarray(f_hat, dtype=float),
+                  np.ascontiguousarray(centres, dtype=float), float(sign), cst, self._k_load,
+                  self._k_axis, self._on_nut, self._coef[0], self._coef[1], self._grid,
+                  float(scale), float(axial_load_n), np.ascontiguousarray(rear, dtype=np.int64),
+                  np.ascontiguousarray(front, dtype=np.int64), *self.b2b.linear_terms(sign))
+        limits = (float(st.tolerance), int(max_iterations), float(st.max_step_rate),
+                  float(disp_limit))
+        x = np.ascontiguousarray(x, dtype=float)
+        if elastic is None:
+            out = kernel.solve_active(x, float(u), *common, *limits)
+        else:
+            u = np.ascontiguousarray(np.broadcast_to(u, (x.shape[0],)), dtype=float)
+            out = kernel.solve_active_elastic(x, u, *common, *elastic, *limits)
+        x, u, f_hat, ok, it, norm, terms, per_contact, speed = out
         t = {"force": terms[:, 0:3], "moment": terms[:, 3:6], "loss": terms[:, 6],
              "nut_torque": terms[:, 7], "axial": terms[:, 8], "load": per_contact[..., 0],
              "contact_loss": per_contact[..., 1], "angle": per_contact[..., 2]}
         return x, u, f_hat, bool(ok), int(it), float(norm), t, speed
 
     def solve_active(self, x, u, f_hat, centres, sign, axial_load_n, scale, rear, front,
-                     max_iterations=None):
-        """Newton iterations for one active set; returns (x, u, f_hat, ok, it, res, t, sp)."""
+                     max_iterations=None, elastic=None):
+        """
+        Newton iterations for one active set; returns (x, u, f_hat, ok, it, res, t, sp).
+
+        ``elastic``: see ``_solve_active_kernel``; the elastic system always runs through
+        the kernel functions (compiled, or as plain Python without numba).
+        """
         st = self.settings
         max_it = st.max_iterations if max_iterations is None else max_iterations
-        if self.use_kernel:
+        if self.use_kernel or elastic is not None:
             return self._solve_active_kernel(x, u, f_hat, centres, sign, axial_load_n, scale, rear,
-                                             front, max_it)
+                                             front, max_it, elastic)
         n = x.shape[0]
         t, res, axial, cons, gr, gf, sp = self._residual(x, u, f_hat, centres, sign, axial_load_n,
                                                          scale, rear, front, True)
@@ -308,7 +324,7 @@ class EquilibriumSolver:
         return x, u, f_hat, bool(norm <= st.tolerance), it, norm, t, sp
 
     def solve(self, x, u, centres, sign, axial_load_n, scale, pair_rear, pair_front, active,
-              f_guess=None, max_total_iterations=None):
+              f_guess=None, max_total_iterations=None, elastic=None):
         """
         Equilibrium with exact B2B complementarity over the candidate (touching) pairs.
 
@@ -317,6 +333,7 @@ class EquilibriumSolver:
         active set (bool per pair).  Forces returned in newtons.  ``max_total_iterations``
         (real-time mode) caps the Newton iterations over all active sets; when it stops the
         solve, the result has ``converged = False`` and ``budget_exhausted = True``.
+        ``elastic``: the elastic load path (order, comp_a, comp_b); u is then per ball.
         """
         st = self.settings
         active = np.asarray(active, dtype=bool).copy()
@@ -332,7 +349,7 @@ class EquilibriumSolver:
                 max(int(max_total_iterations) - total_it, 0)
             x, u, f_hat, ok, it, norm, t, sp = self.solve_active(
                 x, u, f0, centres, sign, axial_load_n, scale, rear, front,
-                st.max_iterations if left is None else min(st.max_iterations, left))
+                st.max_iterations if left is None else min(st.max_iterations, left), elastic)
             total_it += it
             f_all = np.zeros(pair_rear.size)
             f_all[idx] = f_hat

@@ -13,15 +13,23 @@ reverse or change speed.  The nut velocity sets the direction of friction (its m
 only scales losses: quasi-static Coulomb friction is rate independent); the axial load W is
 the force of the balls on the nut along +z (W > 0 opposes omega_N > 0) and may change sign.
 omega_N = 0 gives zero friction torque and keeps the state (static friction is
-indeterminate in this model).  Each step returns the friction torque on the nut
-T_f = T_nut - W p / 2pi split into ball-groove and B2B parts (by their losses), the drive
-power omega_N T_f and the total loss (equal to solver precision), every ball's azimuth,
-omega_B, contact loads, and the B2B contact groups (ball ids rear-first with their forces).
+indeterminate in this model).  Load range (``config.validity``): a load whose mean contact
+load exceeds the model's limit (contact ellipse a / R_B, Hertz pressure; about 10 kN for
+Table 4) is not solved: the step returns ``converged = False``, ``in_load_range = False``
+and zero torques, and keeps the state.  A solution with any single contact above the limit
+keeps its numbers with ``in_load_range = False`` (an unconverged step inside the range keeps
+``in_load_range = True``: its iterate's contact loads mean nothing).  Each step returns the
+friction torque on the nut T_f = T_nut - W p / 2pi split into ball-groove and B2B parts (by
+their losses), the drive power omega_N T_f and the total loss (equal to solver precision),
+every ball's azimuth, omega_B, contact loads, and the B2B contact groups (ball ids
+rear-first with their forces).
 
 Model: N balls on a closed loop of ``loaded_turns`` turns in the nut (the return tube has
-zero length, so the first and last balls are neighbours); the nut is rigid and carries W
-through its axial displacement, shared by all balls; bulk elastic deformation of screw and
-nut is left out.  Balls never overlap: after each advance, overlaps are removed by the L2
+zero length, so the first and last balls are neighbours).  The axial load W reaches the balls
+either through a rigid nut and shaft (``load_distribution: rigid``: one nut displacement
+shared by all balls) or through shaft and nut bars that deform axially between the balls
+(``elastic``, ref. [19]; ``load_distribution.py``), so that each ball's load varies along the
+nut.  Balls never overlap: after each advance, overlaps are removed by the L2
 projection onto non-overlapping positions (pool-adjacent-violators on the ring).  Contacts
 close and open by the exact complementarity of Eq. (61) (``solver``).
 
@@ -55,6 +63,7 @@ import numpy as np
 
 from bb_friction_ros.ball_screw import geometry as geo
 from bb_friction_ros.ball_screw import kernel
+from bb_friction_ros.ball_screw.load_distribution import elastic_load_path
 from bb_friction_ros.ball_screw.screw_model import ScrewModel
 
 _TINY = float(np.finfo(float).tiny)
@@ -81,6 +90,8 @@ class StepResult:
     loads_n: np.ndarray
     b2b_forces_n: np.ndarray          # per ring pair (ball j, ball j+1), 0 if open
     groups: list = field(default_factory=list)   # [(ball ids rear-first, forces)]
+    ball_axial_loads_n: np.ndarray = None   # per ball: its axial force on the nut (sum = W)
+    in_load_range: bool = True       # False: outside config.validity (see docs); see step()
     iterations: int = 0
     solve_time_s: float = 0.0
 
@@ -112,6 +123,8 @@ class WholeScrew:
         self.n = tr.n_balls
         self.loop = 2.0 * math.pi * tr.loaded_turns
         self.separation = self.model.b2b.separation
+        self.max_contact_load_n = self.model.max_contact_load_n()
+        self.max_axial_load_n = self.model.max_axial_load_n(self.n)
         if self.n * self.separation >= self.loop:
             raise ValueError(
                 f"ball_screw.track.n_balls: {self.n} balls need "
@@ -169,15 +182,21 @@ class WholeScrew:
         return kernel.ring_pairs(self.azimuth, self.separation, self.loop,
                                  self.config.solver.gap_tolerance_rad, float(sign))
 
-    def _zero_result(self, omega_n, axial_load_n, dt_s):
-        """No motion or no load: zero friction, state kept."""
+    def _zero_result(self, omega_n, axial_load_n, dt_s, in_range=True):
+        """
+        Return zero friction with the state kept: no motion or no load.
+
+        With ``in_range`` False: a load beyond the model's range, not solved (converged =
+        False, zero torques, state kept).
+        """
         return StepResult(
             t_s=self.time, nut_angle_rad=self.nut_angle, nut_velocity_rad_s=omega_n,
             axial_load_n=axial_load_n, torque_total_nm=0.0, torque_b2g_nm=0.0, torque_b2b_nm=0.0,
-            drive_power_w=0.0, loss_w=0.0, converged=True, power_balance_error=0.0,
+            drive_power_w=0.0, loss_w=0.0, power_balance_error=0.0,
             azimuth_rad=self.track_azimuth(), theta_rad=self._centres(
                 self.track_azimuth())[0], omega_b_rad_s=self.ratio * omega_n,
-            loads_n=np.zeros((self.n, 4)), b2b_forces_n=np.zeros(self.n))
+            loads_n=np.zeros((self.n, 4)), b2b_forces_n=np.zeros(self.n),
+            ball_axial_loads_n=np.zeros(self.n), converged=in_range, in_load_range=in_range)
 
     def step(self, nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s):
         """
@@ -218,11 +237,19 @@ class WholeScrew:
                               and abs(axial_load_n) <= self.config.solver.min_axial_load_n):
             self._prev = None
             return self._zero_result(omega_n, axial_load_n, dt_s)
+        if abs(axial_load_n) > self.max_axial_load_n:
+            # Beyond the model's range even on average (config.validity): not solved.
+            self._prev = None
+            return self._zero_result(omega_n, axial_load_n, dt_s, in_range=False)
         sign = 1.0 if omega_n > 0.0 else -1.0
         phi = self.track_azimuth()
         theta, centres, shifts = self._centres(phi)
         pair_idx, rear, front = self._pairs(sign)
         scale = self.model.force_scale(self.n, axial_load_n)
+        elastic = None
+        if self.config.load_distribution == "elastic":
+            elastic = elastic_load_path(phi, self.config.geometry.lead_m,
+                                        self.config.elastic, axial_load_n, scale)
         load_sign = 1.0 if axial_load_n >= 0.0 else -1.0
         sol = None
         prev = None
@@ -237,7 +264,7 @@ class WholeScrew:
                 faster = gx[rear, 2] * sign > gx[front, 2] * sign
                 active = (self._active[pair_idx] & (gf[pair_idx] > 0.0)) | faster
                 sol = self.model.solver.solve(gx, gu, centres, sign, axial_load_n, scale, rear,
-                                              front, active, gf[pair_idx], budget)
+                                              front, active, gf[pair_idx], budget, elastic)
                 iterations += sol.iterations
                 if sol.converged or sol.budget_exhausted:
                     # Real-time mode: an unfinished iterate is returned, converged = False.
@@ -247,7 +274,8 @@ class WholeScrew:
             free = self.model.cold_solve(*shifts, sign, axial_load_n)
             ratio = free.x[:, 2] * sign
             sol = self.model.solver.solve(free.x, free.u, centres, sign, axial_load_n, scale, rear,
-                                          front, ratio[rear] > ratio[front])
+                                          front, ratio[rear] > ratio[front],
+                                          elastic=elastic)
             sol.converged = sol.converged and free.converged
             iterations += sol.iterations
         sol.iterations = iterations
@@ -313,5 +341,10 @@ class WholeScrew:
             power_balance_error=abs(drive - loss) / max(loss, _TINY),
             azimuth_rad=phi, theta_rad=theta, omega_b_rad_s=self.ratio * omega_n,
             loads_n=sol.terms["load"].copy(), b2b_forces_n=self._forces.copy(),
-            groups=groups, iterations=sol.iterations,
+            groups=groups, ball_axial_loads_n=-sol.terms["axial"].copy(),
+            # Per contact only for a solution: an unconverged iterate's loads mean nothing,
+            # and its load |W| already passed the range check in ``step``.
+            in_load_range=bool(not sol.converged
+                               or sol.terms["load"].max() <= self.max_contact_load_n),
+            iterations=sol.iterations,
             solve_time_s=time.perf_counter() - t0)

@@ -242,6 +242,11 @@ class FrictionMapLine:
         arrays = _cached("line", (round(self.ellipticity, 12), self.n_nodes), build)
         self._values, self._slopes = arrays["values"], arrays["slopes"]
 
+    @property
+    def hermite_tables(self):
+        """(values, node slopes, step): the cubic Hermite table, for compiled evaluators."""
+        return self._values, self._slopes, self.step
+
     def evaluate(self, u, derivative=False):
         """Normalised (f_Y, m, p) at rate angles ``u`` [rad]; with d/du if ``derivative``."""
         t = (np.asarray(u, dtype=float) + math.pi) / self.step

@@ -75,9 +75,6 @@ class LinearPairCase:
             self._model = LinearBearingModel(self.cfg)
         return self._model
 
-    def _dbeta(self, theta_rad, dbeta_tr_rad, dbeta_tl_rad):
-        return np.array([-theta_rad, theta_rad, dbeta_tr_rad, dbeta_tl_rad], dtype=float)
-
     def loads(self, beta_rad, side_force_n):
         """Contact loads of one ball by the configured statics model  [N]."""
         cfg = self.cfg
@@ -86,18 +83,23 @@ class LinearPairCase:
                                            cfg.vertical_load_n)
         return contact_forces_rigid(beta_rad, side_force_n, cfg.vertical_load_n)
 
-    def numerical(self, theta_rad, rho, dbeta_tr_rad=0.0, dbeta_tl_rad=0.0):
+    def numerical(self, theta_rad, rho, dbeta_tr_rad=0.0, dbeta_tl_rad=0.0, dbeta_bl_rad=None,
+                  dbeta_br_rad=None):
         """
         Low-order numerical model (Eqs. 1-10) of the two-ball case.
 
         Parameters
         ----------
         theta_rad : float
-            Bottom-groove deviation theta: dbeta_BL = -theta, dbeta_BR = +theta  [rad].
+            Bottom-groove deviation theta: dbeta_BL = -theta, dbeta_BR = +theta  [rad]
+            (Sec. 2.4.1); must be 0 when ``dbeta_bl_rad`` / ``dbeta_br_rad`` are given.
         rho : float
             Side force ratio N_x / N_y of ball 1; ball 2 carries -rho N_y  [1].
         dbeta_tr_rad, dbeta_tl_rad : float, optional
             Top-groove deviations; (-theta, theta) is Table 2's matched case (b)  [rad].
+        dbeta_bl_rad, dbeta_br_rad : float, optional
+            The bottom groove's two sides set independently instead of by theta; an unset
+            side is 0  [rad].
 
         Returns
         -------
@@ -108,7 +110,14 @@ class LinearPairCase:
         """
         t0 = time.perf_counter()
         cfg, m = self.cfg, self.model
-        dbeta = self._dbeta(theta_rad, dbeta_tr_rad, dbeta_tl_rad)
+        if dbeta_bl_rad is None and dbeta_br_rad is None:
+            bottom = (-theta_rad, theta_rad)
+        elif theta_rad:
+            raise ValueError("theta_rad and dbeta_bl_rad/dbeta_br_rad both set the bottom "
+                             "groove: give one")
+        else:
+            bottom = (dbeta_bl_rad or 0.0, dbeta_br_rad or 0.0)
+        dbeta = np.array([*bottom, dbeta_tr_rad, dbeta_tl_rad], dtype=float)
         beta = deviated_contact_angles(cfg.nominal_contact_angle_rad, *dbeta)
         ny = cfg.vertical_load_n
         notes = []

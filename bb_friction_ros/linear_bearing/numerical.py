@@ -29,6 +29,7 @@ import numpy as np
 
 from bb_friction_ros.contact.friction_maps import FrictionMapLine
 from bb_friction_ros.contact.hertz import HertzContact
+from bb_friction_ros.linear_bearing import kernel
 from bb_friction_ros.linear_bearing.geometry import TOP, outward_normals
 
 
@@ -81,6 +82,10 @@ class LinearBearingModel:
         self.hertz = HertzContact.ball_in_straight_groove(
             cfg.ball_radius_m, cfg.conformity, cfg.youngs_modulus_pa, cfg.poisson_ratio)
         self.fmap = FrictionMapLine(self.hertz.ellipticity, n_nodes=cfg.map_nodes)
+        # Compiled Newton (``kernel.solve_group``); the numpy path without numba, or with
+        # ``use_kernel = False`` (the reference the tests compare with).
+        self.use_kernel = kernel.HAVE_NUMBA
+        self._vg = np.where(TOP, cfg.groove_velocity_m_s, 0.0)
 
     def ball(self, beta_rad, load_n):
         """Make a Ball from contact angles and normal loads (loads below the threshold unload)."""
@@ -206,6 +211,14 @@ class LinearBearingModel:
         z = self.initial_guess(balls) if z0 is None else np.array(z0, dtype=float)
         tol = self.cfg.solver_tolerance
         prep = self._prepare(balls)
+        if self.use_kernel:
+            cfg = self.cfg
+            z, norm, it = kernel.solve_group(
+                z, prep["nx"], prep["ny"], prep["q"], prep["a"], self._vg, v,
+                cfg.ball_radius_m, cfg.friction_coefficient, prep["q_ref"],
+                *self.fmap.hermite_tables, tol, max_iter)
+            return self._unpack(balls, z, v, converged=bool(norm <= tol),
+                                residual=float(norm), iterations=int(it), prep=prep)
         res, jac = self._residual(balls, z, v, prep=prep)
         norm = np.max(np.abs(res))
         it = 0
@@ -227,13 +240,20 @@ class LinearBearingModel:
         return self._unpack(balls, z, v, converged=bool(norm <= tol), residual=float(norm),
                             iterations=it)
 
-    def _unpack(self, balls, z, v, converged, residual, iterations):
+    def _unpack(self, balls, z, v, converged, residual, iterations, prep=None):
         cfg = self.cfg
         r_b, mu = cfg.ball_radius_m, cfg.friction_coefficient
         g = len(balls)
         q_ref = self._q_ref(balls)
         motions = []
-        for j, b in enumerate(balls):
+        if self.use_kernel and prep is not None:
+            fz, mom, loss, c_over_a = kernel.group_outputs(
+                z, prep["nx"], prep["ny"], prep["q"], prep["a"], self._vg, v, r_b, mu,
+                *self.fmap.hermite_tables)
+            k_w = v / r_b
+            motions = [BallMotion(z[0] * v, np.array([z[1 + 2 * j] * k_w, z[2 + 2 * j] * k_w]),
+                                  fz[j], mom[j], loss[j], c_over_a[j]) for j in range(g)]
+        for j, b in enumerate(balls if not motions else ()):
             wx, wy = z[1 + 2 * j] * v / r_b, z[2 + 2 * j] * v / r_b
             nx, ny = b.normals[:, 0], b.normals[:, 1]
             slip = z[0] * v - np.where(TOP, v, 0.0) + r_b * (wx * ny - wy * nx)

@@ -76,6 +76,20 @@ WHOLE_SCREW_OUTPUTS = (
     Output("max_groups", "1", "most B2B contact groups at one step", "int64"),
     Output("power_balance_error_max", "1", "largest |drive power - loss| / loss (solver "
            "precision)"),
+    # Fig. 21 features over the whole run (``simulation.fig21_features``; settle_steps is
+    # not applied: the paper's features start at 0 deg).
+    Output("fig21_peak_b2b_share", "1", "largest T_B2B / T_B2G (paper 49.6 %)"),
+    Output("fig21_peak_nut_angle_rad", "rad", "nut angle of that peak (paper 126 deg)"),
+    Output("fig21_zero_nut_angle_rad", "rad", "first nut angle after the peak without B2B "
+           "torque (paper 306 deg; NaN: never)"),
+    Output("fig21_b2g_torque_variation", "1", "(max - min) / mean of the ball-groove torque "
+           "(paper: 'barely has variation')"),
+)
+
+WHOLE_SCREW_PARAMETERS = (
+    Parameter("elastic_load_distribution", "1", "1: load_distribution elastic (shaft and nut "
+              "deform axially, ref. [19]); 0: rigid; default: the config's", integer=True,
+              config_field=False),
 )
 
 LINEAR_PAIR_OUTPUTS = (
@@ -177,18 +191,7 @@ class _ThreadCache:
 
 def _build_linear_case(cfg):
     from bb_friction_ros.linear_bearing.case_study import LinearPairCase
-
-    class BottomDeviationCase(LinearPairCase):
-        """LinearPairCase whose bottom deviations (BL, BR) may be set independently."""
-
-        bottom_rad = None
-
-        def _dbeta(self, theta_rad, dbeta_tr_rad, dbeta_tl_rad):
-            if self.bottom_rad is None:
-                return super()._dbeta(theta_rad, dbeta_tr_rad, dbeta_tl_rad)
-            return np.array([*self.bottom_rad, dbeta_tr_rad, dbeta_tl_rad], dtype=float)
-
-    return BottomDeviationCase(cfg)
+    return LinearPairCase(cfg)
 
 
 def _build_screw_model(key):
@@ -219,11 +222,8 @@ def linear_pair_result(cfg, params, method="numerical"):
     if method != "numerical":
         raise ConfigError("dbeta_bl_rad, dbeta_br_rad: the analytical model takes the "
                           "symmetric theta only; use method: numerical")
-    case.bottom_rad = (params.get("dbeta_bl_rad", 0.0), params.get("dbeta_br_rad", 0.0))
-    try:
-        return case.numerical(0.0, rho, tr, tl)
-    finally:
-        case.bottom_rad = None
+    return case.numerical(0.0, rho, tr, tl, params.get("dbeta_bl_rad", 0.0),
+                          params.get("dbeta_br_rad", 0.0))
 
 
 def run_linear_pair(cfg, params, options):
@@ -287,6 +287,12 @@ def run_whole_screw(cfg, params, options):
     from bb_friction_ros.ball_screw import simulation
     from bb_friction_ros.ball_screw.whole_screw import WholeScrew
     settle = options["settle_steps"]
+    if "elastic_load_distribution" in params:
+        flag = int(params["elastic_load_distribution"])
+        if flag not in (0, 1):
+            raise ConfigError(f"elastic_load_distribution: 0 (rigid) or 1 (elastic), got "
+                              f"{flag}")
+        cfg = dataclasses.replace(cfg, load_distribution="elastic" if flag else "rigid")
     if settle >= cfg.operation.n_steps:
         raise ConfigError(f"sweep.options.settle_steps: {settle} leaves no step of the "
                           f"{cfg.operation.n_steps} of ball_screw.operation.n_steps")
@@ -302,6 +308,13 @@ def run_whole_screw(cfg, params, options):
         [float(np.max(s.b2b_forces_n, initial=0.0)) for s in steps],
         [max((len(ids) for ids, _ in s.groups), default=0) for s in steps],
         [s.n_groups for s in steps], [s.power_balance_error for s in steps], settle)
+    f21 = simulation.fig21_features([s.nut_angle_rad for s in steps],
+                                    [s.torque_b2g_nm for s in steps],
+                                    [s.torque_b2b_nm for s in steps], [s.n_groups for s in steps])
+    out.update(fig21_peak_b2b_share=f21["peak_b2b_share"],
+               fig21_peak_nut_angle_rad=f21["peak_b2b_nut_angle_rad"],
+               fig21_zero_nut_angle_rad=f21["b2b_zero_nut_angle_rad"],
+               fig21_b2g_torque_variation=f21["b2g_torque_variation"])
     return out, OK, ""
 
 
@@ -349,7 +362,8 @@ MODELS = {
                          run_linear_pair, {"numerical": 250, "analytical": 2000}),
     "screw_pair": Model("screw_pair", "ball_screw", SCREW_PAIR_OUTPUTS, (), {}, run_screw_pair,
                         {"default": 20}),
-    "whole_screw": Model("whole_screw", "ball_screw", WHOLE_SCREW_OUTPUTS, (),
+    "whole_screw": Model("whole_screw", "ball_screw", WHOLE_SCREW_OUTPUTS,
+                         WHOLE_SCREW_PARAMETERS,
                          {"settle_steps": (0, int)}, run_whole_screw, {"default": 1}),
 }
 

@@ -11,7 +11,6 @@ from bb_friction_ros.ball_screw.module import solve_two_ball_module
 from bb_friction_ros.model_file import load_ball_screw
 from bb_friction_ros.ball_screw.screw_model import ScrewModel
 from bb_friction_ros.ball_screw.simulation import run_whole_screw
-from bb_friction_ros.ball_screw.single_ball import LENGTH_SCALE_M
 from bb_friction_ros.ball_screw.whole_screw import WholeScrew
 from invariants import check_module, check_step
 
@@ -33,11 +32,10 @@ def _kernel_evaluate(model, x, u, centres, sign, scale):
     n = x.shape[0]
     res, jac, dax = np.empty((n, 6)), np.empty((n, 6, 7)), np.empty((n, 7))
     terms, per_contact = np.empty((n, 10)), np.empty((n, 4, 3))
-    cst = np.array([LENGTH_SCALE_M, b.r_b, b.cos_a, b.sin_a, b.ell, b.mu, b.free_distance,
-                    b.r_gear])
-    axial = kernel.evaluate_balls(x, u, centres, sign, cst, sv._k_load, sv._k_axis,
-                                  sv._on_nut, sv._coef[0], sv._coef[1], sv._grid, scale, True,
-                                  res, jac, dax, terms, per_contact)
+    cst = kernel.pack_constants(b)
+    axial = kernel.evaluate_balls(x, u, np.zeros(n), centres, sign, cst, sv._k_load,
+                                  sv._k_axis, sv._on_nut, sv._coef[0], sv._coef[1], sv._grid,
+                                  scale, True, res, jac, dax, terms, per_contact)
     return axial, res, jac, dax, terms, per_contact
 
 

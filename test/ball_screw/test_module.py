@@ -23,7 +23,8 @@ def test_table5_b2b_force(cases):
     assert b.f_b2b_n / a.f_b2b_n == paper_approx(paper.SCREW_F_B2B_RATIO)
     # KNOWN GAP, not a paper assertion: absolute F_B2B is ~0.54 x the paper's 1.92 / 2.89 N
     # (docs/assumptions_ball_screw.md).  Regression guard against the independent
-    # re-implementation of the notes (1.04 / 1.56 N), 2 %.
+    # re-implementation of Sec. 3 (Table 4, E = 210 GPa, 50 N shared, zero preload), which
+    # found 1.04 / 1.56 N; 2 %.
     assert a.f_b2b_n == pytest.approx(1.04, rel=0.02)
     assert b.f_b2b_n == pytest.approx(1.56, rel=0.02)
 
@@ -39,7 +40,8 @@ def test_table5_power_balance(cases):
 
 
 def test_table5_faster_ball_is_rear(cases):
-    # theta > 0 rotates beta_SL down and beta_SR up: that ball orbits faster (notes).
+    # theta > 0 rotates beta_SL down and beta_SR up: that ball orbits faster (free orbit
+    # ratios 0.55465 / 0.56387 / 0.56823 at 0 / 2 / 3 deg, docs/assumptions_ball_screw.md).
     for c in cases.values():
         assert c.rear_ball == 2
         assert c.omega_ratio_free[1] > c.omega_ratio_free[0]

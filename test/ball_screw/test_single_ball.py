@@ -44,14 +44,15 @@ def test_jacobian_matches_finite_differences(model):
 @pytest.mark.parametrize("theta_deg, ratio", [(0.0, 0.55465), (2.0, 0.56387),
                                               (3.0, 0.56823)])
 def test_free_orbit_ratio_matches_independent_reimplementation(model, theta_deg, ratio):
-    # Reference: the notes' independent re-implementation (25 N per ball, two-ball module).
+    # Reference: an independent re-implementation of Sec. 3 (25 N per ball, two-ball module).
     sol = model.cold_solve(np.radians([0.0, theta_deg]), 0.0, 0.0, 1.0, 50.0)
     assert sol.converged
     assert sol.x[1, 2] == pytest.approx(ratio, abs=2e-4)
 
 
 def test_three_point_contact_at_50n(model):
-    # Notes: SL ~ NR ~ 38-41 N, NL ~ 5-7 N, SR unloaded (zero preload, Coulomb friction).
+    # That re-implementation: SL ~ NR ~ 38-41 N, NL ~ 5-7 N, SR unloaded (zero preload,
+    # Coulomb friction).
     load = _solve(model, 0.0).terms["load"][0]
     assert load[1] == 0.0
     assert 35.0 < load[0] < 42.0 and 35.0 < load[2] < 42.0

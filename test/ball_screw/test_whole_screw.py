@@ -40,11 +40,21 @@ def test_fig20_groups_form(short_run):
 
 
 def test_fig21_b2b_share_peak(short_run):
-    # Ours (3 deg amplitude): ~38 % near 104 deg; the lower share follows the known F_B2B
-    # gap.  The bands and their reasons are in paper.B2B_PEAK_SHARE / B2B_PEAK_NUT_ANGLE.
+    # Ours (3.44 deg amplitude, calibrated): ~47.5 % near 97 deg.  The bands and their
+    # reasons are in paper.B2B_PEAK_SHARE / B2B_PEAK_NUT_ANGLE.
     s = summarize(short_run[0], short_run[1].separation)
     assert_paper(paper.B2B_PEAK_SHARE, 100 * s["peak_b2b_share"])
     assert_paper(paper.B2B_PEAK_NUT_ANGLE, s["peak_b2b_nut_angle_deg"])
+
+
+def test_fig21_peak_share_at_the_calibrated_amplitude(short_run, config):
+    # The theta amplitude (not in the paper) is calibrated to this number, 49.6 %, by the
+    # bundled sweep (docs/assumptions_ball_screw.md).  Tolerance 3 pt: the calibration
+    # resolves the amplitude to ~0.05 deg (1.2 pt), and the peak share scatters by ~1 pt
+    # between amplitudes 0.01 deg apart (3.6 deg time steps); rigid and elastic differ by ~3.
+    assert math.degrees(config.errors.theta_amplitude_rad) == pytest.approx(3.44)
+    s = summarize(short_run[0], short_run[1].separation)
+    assert 100 * s["peak_b2b_share"] == pytest.approx(paper.B2B_PEAK_SHARE.value, abs=3.0)
 
 
 def test_theta_zero_gives_no_b2b(model):

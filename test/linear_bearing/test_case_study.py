@@ -28,3 +28,17 @@ def test_fig9_max_friction_increase():
     # contact only where ball 1 is faster (Eq. 9), and the map is centrally symmetric
     assert np.all((g["f_b2b_n"] > 0) == (g["eps1"] > g["eps2"]))
     assert np.allclose(ratio, ratio[::-1, ::-1], rtol=1e-9)
+
+
+def test_bottom_deviations_are_ordinary_inputs():
+    """dbeta_BL/BR given directly equal the symmetric theta case; both at once are refused."""
+    case = LinearPairCase(load_linear_bearing())
+    th = math.radians(2.0)
+    a = case.numerical(th, -0.6)
+    b = case.numerical(0.0, -0.6, dbeta_bl_rad=-th, dbeta_br_rad=th)
+    assert b.f_b2b_n == pytest.approx(a.f_b2b_n, rel=1e-12)
+    assert b.eps == pytest.approx(a.eps, rel=1e-12)
+    c = case.numerical(0.0, -0.6, dbeta_br_rad=th)          # an unset side is 0
+    assert c.converged and c.eps != a.eps
+    with pytest.raises(ValueError, match="theta_rad"):
+        case.numerical(th, -0.6, dbeta_bl_rad=-th)

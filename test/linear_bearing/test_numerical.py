@@ -7,6 +7,7 @@ import pytest
 
 from bb_friction_ros import paper
 from bb_friction_ros.config import load_linear_bearing
+from bb_friction_ros.linear_bearing import kernel
 from bb_friction_ros.linear_bearing.case_study import LinearPairCase
 from bb_friction_ros.linear_bearing.geometry import (contact_forces_diagonal,
                                                      contact_forces_rigid,
@@ -147,3 +148,33 @@ def test_nonconvergence_is_flagged(model, cfg):
     """A solve stopped early reports converged = False."""
     balls = [make_ball(model, cfg, THETA, -0.6), make_ball(model, cfg, THETA, 0.6)]
     assert not model.solve_group(balls, max_iter=1).converged
+
+
+@pytest.mark.skipif(not kernel.HAVE_NUMBA, reason="numba not installed")
+@pytest.mark.parametrize("theta_deg, rhos", [(2.0, (-0.6, 0.6)), (-1.0, (0.3, -0.2, 0.5)),
+                                             (2.5, (-0.6,))])
+def test_compiled_kernel_equals_numpy_path(cfg, theta_deg, rhos):
+    """The compiled Newton (default) gives the numpy reference's solution and outputs."""
+    fast, ref = LinearBearingModel(cfg), LinearBearingModel(cfg)
+    ref.use_kernel = False
+    balls = [make_ball(fast, cfg, math.radians(theta_deg), r) for r in rhos]
+    z0 = np.concatenate([[0.5], np.tile([0.7, 0.0], len(balls)), np.full(len(balls) - 1, 0.1)])
+    a, b = fast.solve_group(balls, z0), ref.solve_group(balls, z0)
+    assert a.converged and b.converged
+    np.testing.assert_allclose(a.z, b.z, rtol=1e-9, atol=1e-12)
+    for ma, mb in zip(a.balls, b.balls):
+        np.testing.assert_allclose(ma.friction_n, mb.friction_n, rtol=1e-9, atol=1e-15)
+        np.testing.assert_allclose(ma.moment_nm, mb.moment_nm, rtol=1e-9, atol=1e-18)
+        np.testing.assert_allclose(ma.loss_w, mb.loss_w, rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(a.b2b_force_n, b.b2b_force_n, rtol=1e-9, atol=1e-12)
+    # and the kernel's own residual is the numpy residual
+    v = cfg.groove_velocity_m_s
+    z = a.z + 0.01
+    res_k, jac_k = np.empty(z.size), np.empty((z.size, z.size))
+    prep = fast._prepare(balls)
+    kernel.group_residual(z, prep["nx"], prep["ny"], prep["q"], prep["a"], fast._vg, v,
+                          cfg.ball_radius_m, cfg.friction_coefficient, prep["q_ref"],
+                          *fast.fmap.hermite_tables, True, res_k, jac_k)
+    res_n, jac_n = ref._residual(balls, z, v)
+    np.testing.assert_allclose(res_k, res_n, rtol=1e-11, atol=1e-13)
+    np.testing.assert_allclose(jac_k, jac_n, rtol=1e-10, atol=1e-12)

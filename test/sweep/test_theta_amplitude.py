@@ -1,0 +1,54 @@
+"""The theta-amplitude sweep of Fig. 19: spec, Fig. 21 outputs, calibration to one feature."""
+
+import math
+
+import numpy as np
+import pytest
+
+from bb_friction_ros.config import bundled_config
+from bb_friction_ros.sweep import theta_amplitude as ta
+from bb_friction_ros.sweep.models import FAILED, MODELS, OK, evaluate
+from bb_friction_ros.sweep.spec import load_spec
+
+
+def _rows(amps_deg, shares, elastic=0.0):
+    return {ta.AMPLITUDE: np.radians(amps_deg), ta.ELASTIC: np.full(len(amps_deg), elastic),
+            "fig21_peak_b2b_share": np.asarray(shares, dtype=float)}
+
+
+def test_bundled_spec_is_the_whole_grid():
+    spec = load_spec(bundled_config(ta.SPEC_NAME))
+    assert spec.model == "whole_screw"
+    assert spec.n_samples == 26            # 13 amplitudes 2-5 deg x rigid, elastic
+    assert "fig21_peak_b2b_share" in spec.outputs
+
+
+def test_calibration_solves_the_line_through_the_crossing():
+    # share = 0.2 (A - 1 deg): 49.6 % at 3.48 deg exactly, no scatter
+    amps = np.arange(2.0, 5.01, 0.25)
+    amp, unc = ta.calibrate_amplitude(_rows(amps, 0.2 * (amps - 1.0)), elastic=False)
+    assert math.degrees(amp) == pytest.approx(3.48, abs=1e-9)
+    assert unc == pytest.approx(0.0, abs=1e-12)
+
+
+def test_calibration_reports_scatter_and_refuses_a_sweep_that_never_crosses():
+    amps = np.arange(2.0, 5.01, 0.25)
+    wobble = 0.01 * (-1.0) ** np.arange(amps.size)
+    amp, unc = ta.calibrate_amplitude(_rows(amps, 0.2 * (amps - 1.0) + wobble), False)
+    assert abs(math.degrees(amp) - 3.48) < 0.1 and math.degrees(unc) > 0.01
+    assert ta.calibrate_amplitude(_rows(amps, np.full(amps.size, 0.3)), False) is None
+
+
+def test_whole_screw_sample_records_the_fig21_features():
+    model = MODELS["whole_screw"]
+    base = model.load_base(None, {"operation": {"n_steps": 40, "duration_s": 0.4}})
+    names = {"errors.theta_amplitude_rad"}
+    params = {"errors.theta_amplitude_rad": math.radians(3.44), "elastic_load_distribution": 1}
+    out, status, _ = evaluate(model, base, params, {"settle_steps": 0}, names)
+    assert status == OK
+    assert 0.3 < out["fig21_peak_b2b_share"] < 0.7
+    assert math.radians(60) < out["fig21_peak_nut_angle_rad"] < math.radians(140)
+    assert out["max_groups"] == 4
+    params["elastic_load_distribution"] = 2
+    _, status, reason = evaluate(model, base, params, {"settle_steps": 0}, names)
+    assert status == FAILED and "elastic_load_distribution" in reason
