@@ -429,6 +429,26 @@ def _why(exc):
     return f"{type(exc).__name__}: {text[0]}" if text else type(exc).__name__
 
 
+def iter_events(path, topics=Topics()):
+    """
+    Return (an iterator of the input events in log order, messages read per topic).
+
+    The bag is read as the iterator is consumed, so a long recording is never in memory as
+    events, and closed when it is exhausted; the counts (a Counter of the messages actually
+    read) fill as it goes.  Raises FileNotFoundError or BagError (a ValueError) naming the file
+    when the bag cannot be opened; reading a damaged one raises BagError.
+    """
+    bag = BagInput(path, topics)
+
+    def events():
+        try:
+            for _, _, _, ev in bag.messages(all_topics=False):
+                yield ev
+        finally:
+            bag.close()
+    return events(), bag.counts
+
+
 def read_events(path, topics=Topics()):
     """
     Return (events in log order, messages read per topic) of a rosbag2.
@@ -436,9 +456,8 @@ def read_events(path, topics=Topics()):
     Only the input topics are read.  Raises FileNotFoundError or BagError (a ValueError)
     naming the file when the bag cannot be used.
     """
-    with BagInput(path, topics) as bag:
-        events = [ev for _, _, _, ev in bag.messages(all_topics=False)]
-        return events, dict(bag.counts)
+    events, counts = iter_events(path, topics)
+    return list(events), dict(counts)
 
 
 def _header(store, stamp_s):

@@ -17,14 +17,25 @@ stribeck           T_st exp(-(omega/omega_s)^2) sign(omega)                     
 load_dependent     k abs(W) sign(omega)                                         wrong mu
 lead_error         W de/dphi, e = sum_h s_h sin(h phi) + c_h cos(h phi)         lead error
 thermal_drift      dT (1 - exp(-t/tau)) sign(omega)                             warm-up
+inertia            J alpha                                                      moving parts
+offset             T0                                                           gravity,
+                                                                                sensor bias
+coulomb_asymmetry  (Delta/2) |sign(omega)|                                      wear, gravity
+viscous_asymmetry  (Delta_c/2) |omega|                                          wear, gravity
+stroke_position    sign(omega) sum_k a_k P_k(xi), xi = (phi - phi_c)/phi_h       wear along
+                                                                                the stroke
+angle_ripple       sum_h a_h sin(h phi) + b_h cos(h phi)                        runout,
+                                                                                coupling
 =================  ===========================================================  ============
 
-omega: nut velocity [rad/s]; phi: nut angle [rad]; W: axial load [N] (force of the balls on
-the nut along +z, as in the model); t: input stamp relative to the first sample of the run
-(the runner passes stamp - first stamp since its last reset) [s].  ``e(phi)`` is the axial
-position error of the nut relative to the nominal lead [m]: by virtual work it changes the
-nut torque by W de/dphi, which the model (friction only; the ideal W p / 2 pi is excluded)
-leaves out.
+omega: nut velocity [rad/s]; alpha: nut acceleration [rad/s^2] (low-pass filtered derivative of
+omega: ``AccelerationFilter``); phi: nut angle [rad] (cumulative: the nut's travel along the
+screw for ``stroke_position``, P_k the Legendre polynomials, xi clipped to [-1, 1]); W: axial
+load [N] (force of the balls on the nut along +z, as in the model); t: input stamp relative to
+the first sample of the run (the runner passes stamp - first stamp since its last reset) [s].
+``e(phi)`` is the axial position error of the nut relative to the nominal lead [m]: by virtual
+work it changes the nut torque by W de/dphi, which the model (friction only; the ideal W p / 2
+pi is excluded) leaves out.
 
 In ``augmented.yaml`` a term is ``{name: <name>, params: {<param>_<unit>: value}}``; SI keys,
 or the project's edge units (``sin1_um`` for ``sin1_m``).  ``load_terms`` validates a list
@@ -33,6 +44,8 @@ of them and names a bad key with its dotted path, e.g.
 """
 
 import dataclasses
+import functools
+import math
 from typing import Callable, Optional
 
 import numpy as np
@@ -42,6 +55,11 @@ from bb_friction_ros.config import ConfigError, field, from_mapping, si_key
 # Harmonics of the lead error per revolution that a term can carry.  Beyond the fourth the
 # torque ripple of a ground screw is below any torque sensor's resolution.
 MAX_LEAD_HARMONICS = 4
+# Harmonics of a load-independent angle ripple (runout, coupling misalignment): the same bound.
+MAX_RIPPLE_HARMONICS = 4
+# Order of the stroke polynomial: wear, misalignment and lubricant distribution along a stroke
+# are smooth; beyond a cubic the term would fit noise of one recording.
+MAX_STROKE_ORDER = 3
 
 
 @dataclasses.dataclass(frozen=True)
@@ -106,6 +124,92 @@ class ThermalDriftParams:
 
 
 @dataclasses.dataclass(frozen=True)
+class InertiaParams:
+    """
+    Torque that accelerates the moving parts: T = J alpha.
+
+    A motor-current or torque-sensor recording contains it; a friction model does not.  The
+    acceleration is not measured: it is the derivative of the nut velocity low-pass filtered
+    at ``accel_cutoff_hz`` (``AccelerationFilter``; zero-phase for the analysis, causal in the
+    node and replay), the filter restarting after a gap longer than ``max_gap_s``.
+    """
+
+    j_kg_m2: float = field(0.0, "kg m^2", "moment of inertia J reduced to the nut angle",
+                           lo=0.0, hi=1e3)
+    accel_cutoff_hz: float = field(10.0, "Hz", "cut-off of the 2nd-order Butterworth low-pass "
+                                   "on the nut velocity whose derivative is alpha", lo=0.0,
+                                   hi=1e5, lo_open=True)
+    max_gap_s: float = field(0.1, "s", "a step between samples longer than this restarts the "
+                             "acceleration filter (a new continuous segment)", lo=0.0, hi=1e6,
+                             lo_open=True)
+
+
+@dataclasses.dataclass(frozen=True)
+class OffsetParams:
+    """A constant torque, not signed by the motion: gravity on an inclined axis, sensor bias."""
+
+    torque_nm: float = field(0.0, "N m", "offset torque T0", lo=-100.0, hi=100.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class CoulombAsymmetryParams:
+    """
+    Constant friction that differs between the directions: +Delta/2 moving +, -Delta/2 moving -.
+
+    In torque (friction has the sign of omega) that is +Delta/2 on every moving sample:
+    ``seal_drag`` keeps the mean of both directions.  On moving samples this column equals
+    ``offset``; only standstill samples tell the two apart.
+    """
+
+    delta_torque_nm: float = field(0.0, "N m", "drag of the positive minus the negative "
+                                   "direction Delta", lo=-100.0, hi=100.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class ViscousAsymmetryParams:
+    """Viscous drag that differs between the directions: (c +/- Delta_c/2) omega."""
+
+    delta_c_nm_s_per_rad: float = field(0.0, "N m s/rad", "viscous coefficient of the "
+                                        "positive minus the negative direction Delta_c",
+                                        lo=-10.0, hi=10.0)
+
+
+def _stroke_fields():
+    out = [("center_rad", float, field(0.0, "rad", "nut angle at the middle of the fitted "
+                                       "stroke phi_c")),
+           ("half_range_rad", float, field(1.0, "rad", "half the fitted stroke phi_h; beyond "
+                                           "it the polynomial is held at its end value",
+                                           lo=0.0, hi=1e12, lo_open=True))]
+    for k in range(1, MAX_STROKE_ORDER + 1):
+        out.append((f"p{k}_nm", float, field(
+            0.0, "N m", f"amplitude of the Legendre polynomial of order {k} of the drag "
+            "along the stroke", lo=-100.0, hi=100.0)))
+    return out
+
+
+StrokePositionParams = dataclasses.make_dataclass(
+    "StrokePositionParams", _stroke_fields(), frozen=True,
+    namespace={"__doc__": "Drag that changes along the stroke: sign(omega) sum_k p_k "
+               "P_k((phi - center) / half_range)."})
+
+
+def _ripple_fields():
+    out = []
+    for h in range(1, MAX_RIPPLE_HARMONICS + 1):
+        for kind in ("sin", "cos"):
+            out.append((f"{kind}{h}_nm", float, field(
+                0.0, "N m", f"{kind} amplitude of harmonic {h} of the torque ripple per nut "
+                "revolution", lo=-100.0, hi=100.0)))
+    return out
+
+
+AngleRippleParams = dataclasses.make_dataclass(
+    "AngleRippleParams", _ripple_fields(), frozen=True,
+    namespace={"__doc__": "Load-independent ripple per revolution (runout, coupling "
+               "misalignment): sum_h sin_h sin(h phi) + cos_h cos(h phi) [N m]."})
+
+
+@dataclasses.dataclass(frozen=True)
 class Inputs:
     """The inputs a term sees, as numpy arrays (broadcast together)."""
 
@@ -113,13 +217,15 @@ class Inputs:
     nut_angle_rad: np.ndarray
     nut_velocity_rad_s: np.ndarray
     axial_load_n: np.ndarray
+    nut_accel_rad_s2: Optional[np.ndarray] = None     # only ``inertia`` reads it
 
     @classmethod
-    def of(cls, t_s, nut_angle_rad, nut_velocity_rad_s, axial_load_n):
-        """Convert and broadcast the four inputs."""
-        arrays = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in
-                                       (t_s, nut_angle_rad, nut_velocity_rad_s,
-                                        axial_load_n)))
+    def of(cls, t_s, nut_angle_rad, nut_velocity_rad_s, axial_load_n, nut_accel_rad_s2=None):
+        """Convert and broadcast the inputs (the acceleration is optional)."""
+        given = [t_s, nut_angle_rad, nut_velocity_rad_s, axial_load_n]
+        if nut_accel_rad_s2 is not None:
+            given.append(nut_accel_rad_s2)
+        arrays = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in given))
         return cls(*arrays)
 
 
@@ -159,14 +265,62 @@ def _thermal_columns(x, nl, names):
     return np.stack([warm * _drag_sign(x)], axis=-1)
 
 
+def _inertia_columns(x, nl, names, fixed=None):
+    if x.nut_accel_rad_s2 is None:
+        raise ValueError("the inertia term needs the nut acceleration (nut_accel_rad_s2)")
+    return np.stack([x.nut_accel_rad_s2], axis=-1)
+
+
+def _offset_columns(x, nl, names):
+    return np.stack([np.ones_like(x.t_s)], axis=-1)
+
+
+def _coulomb_asymmetry_columns(x, nl, names):
+    # +Delta/2 moving either way: the positive direction's drag is Delta/2 above the mean,
+    # the negative one's Delta/2 below it, and friction torque has the sign of omega
+    return np.stack([0.5 * np.abs(_drag_sign(x))], axis=-1)
+
+
+def _viscous_asymmetry_columns(x, nl, names):
+    return np.stack([0.5 * np.abs(x.nut_velocity_rad_s)], axis=-1)
+
+
+def stroke_coordinate(nut_angle_rad, center_rad, half_range_rad):
+    """Return xi = (phi - center) / half_range, held at +/-1 beyond the fitted stroke."""
+    return np.clip((np.asarray(nut_angle_rad, float) - center_rad) / half_range_rad, -1.0, 1.0)
+
+
+def _stroke_columns(x, nl, names, fixed):
+    xi = stroke_coordinate(x.nut_angle_rad, fixed["center_rad"], fixed["half_range_rad"])
+    sign = _drag_sign(x)
+    cols = []
+    for name in names:
+        k = int(name[1:].split("_")[0])
+        coef = np.zeros(k + 1)
+        coef[k] = 1.0
+        cols.append(np.polynomial.legendre.legval(xi, coef) * sign)
+    return np.stack(cols, axis=-1)
+
+
+def _ripple_columns(x, nl, names):
+    cols = []
+    for name in names:
+        kind, h = name[:3], int(name[3:].split("_")[0])
+        phase = h * x.nut_angle_rad
+        cols.append(np.sin(phase) if kind == "sin" else np.cos(phase))
+    return np.stack(cols, axis=-1)
+
+
 @dataclasses.dataclass(frozen=True)
 class TermKind:
     """
     One entry of the library.
 
-    The torque is linear in the ``linear`` params: ``columns(inputs, nl, names) @ values``,
-    with ``nl`` the value of the one ``nonlinear`` param (or None).  The same function serves
-    fitting and evaluation, so a fitted term predicts exactly what was fitted.
+    The torque is linear in the ``linear`` params: ``design(inputs, nl, names, fixed) @
+    values``, with ``nl`` the value of the one ``nonlinear`` param (or None) and ``fixed`` the
+    params set from the data before fitting (the stroke's centre and range, the acceleration
+    filter's settings).  The same function serves fitting and evaluation, so a fitted term
+    predicts exactly what was fitted.
     """
 
     name: str
@@ -177,28 +331,42 @@ class TermKind:
     nonnegative: frozenset = frozenset()    # linear params that physics keeps >= 0
     required: tuple = ()
     meaning: str = ""
+    fixed: tuple = ()                       # params set from the data, not fitted
+    sparse: bool = False                    # amplitudes that are 0 are left out of the YAML
+
+    def design(self, x, nl, names, fixed=None):
+        """Return the design columns of ``names`` at inputs ``x``."""
+        if self.fixed:
+            return self.columns(x, nl, names, fixed)
+        return self.columns(x, nl, names)
 
     def torque_nm(self, params, inputs):
         """Return this term's torque [N m] for validated ``params`` at ``inputs``."""
         nl = getattr(params, self.nonlinear) if self.nonlinear else None
         names = tuple(n for n in self.linear if getattr(params, n) != 0.0) \
-            if self.name == "lead_error" else self.linear
+            if self.sparse else self.linear
         if not names:
             return np.zeros_like(inputs.t_s)
         values = np.array([getattr(params, n) for n in names])
-        return self.columns(inputs, nl, names) @ values
+        fixed = {n: getattr(params, n) for n in self.fixed}
+        return self.design(inputs, nl, names, fixed) @ values
 
 
 _LEAD_NAMES = tuple(f"{k}{h}_m" for h in range(1, MAX_LEAD_HARMONICS + 1)
                     for k in ("sin", "cos"))
+_RIPPLE_NAMES = tuple(f"{k}{h}_nm" for h in range(1, MAX_RIPPLE_HARMONICS + 1)
+                      for k in ("sin", "cos"))
+_STROKE_NAMES = tuple(f"p{k}_nm" for k in range(1, MAX_STROKE_ORDER + 1))
 
 LIBRARY = {k.name: k for k in (
     TermKind("viscous_drag", ViscousDragParams, ("c_nm_s_per_rad",), _viscous_columns,
              nonnegative=frozenset({"c_nm_s_per_rad"}), required=("c_nm_s_per_rad",),
-             meaning="viscous drag of the lubricant, proportional to the nut speed"),
+             meaning="viscous drag of the lubricant, proportional to the nut speed (mean of "
+             "both directions)"),
     TermKind("seal_drag", SealDragParams, ("torque_nm",), _seal_columns,
              nonnegative=frozenset({"torque_nm"}), required=("torque_nm",),
-             meaning="constant drag against the motion: seals, wipers, or a preload change"),
+             meaning="constant drag against the motion: seals, wipers, or a preload change "
+             "(mean of both directions)"),
     TermKind("stribeck", StribeckParams, ("torque_nm",), _stribeck_columns,
              nonlinear="velocity_rad_s", nonnegative=frozenset({"torque_nm"}),
              required=("torque_nm", "velocity_rad_s"),
@@ -207,13 +375,40 @@ LIBRARY = {k.name: k for k in (
              required=("k_nm_per_n",),
              meaning="friction proportional to the axial load: the model's friction "
              "coefficient is off"),
-    TermKind("lead_error", LeadErrorParams, _LEAD_NAMES, _lead_columns,
+    TermKind("lead_error", LeadErrorParams, _LEAD_NAMES, _lead_columns, sparse=True,
              meaning="periodic lead error: load torque W de/dphi, once per revolution and "
              "harmonics"),
     TermKind("thermal_drift", ThermalDriftParams, ("delta_torque_nm",), _thermal_columns,
              nonlinear="time_constant_s", required=("delta_torque_nm", "time_constant_s"),
              meaning="slow change of the drag with time (warm-up)"),
+    TermKind("inertia", InertiaParams, ("j_kg_m2",), _inertia_columns,
+             nonnegative=frozenset({"j_kg_m2"}), fixed=("accel_cutoff_hz", "max_gap_s"),
+             required=("j_kg_m2", "accel_cutoff_hz", "max_gap_s"),
+             meaning="torque that accelerates the moving parts, J alpha (alpha from the "
+             "filtered velocity)"),
+    TermKind("offset", OffsetParams, ("torque_nm",), _offset_columns, required=("torque_nm",),
+             meaning="constant torque not signed by the motion: gravity on an inclined axis "
+             "or a sensor bias"),
+    TermKind("coulomb_asymmetry", CoulombAsymmetryParams, ("delta_torque_nm",),
+             _coulomb_asymmetry_columns, required=("delta_torque_nm",),
+             meaning="constant drag that differs between the two directions (wear, gravity "
+             "on a self-locking drive); zero-mean: seal_drag keeps the mean"),
+    TermKind("viscous_asymmetry", ViscousAsymmetryParams, ("delta_c_nm_s_per_rad",),
+             _viscous_asymmetry_columns, required=("delta_c_nm_s_per_rad",),
+             meaning="viscous drag that differs between the two directions; zero-mean: "
+             "viscous_drag keeps the mean"),
+    TermKind("stroke_position", StrokePositionParams, _STROKE_NAMES, _stroke_columns,
+             fixed=("center_rad", "half_range_rad"), required=("center_rad", "half_range_rad"),
+             sparse=True,
+             meaning="drag that changes along the stroke (wear, misalignment, lubricant "
+             "distribution): a low-order polynomial of the nut's travel"),
+    TermKind("angle_ripple", AngleRippleParams, _RIPPLE_NAMES, _ripple_columns, sparse=True,
+             meaning="torque ripple once per nut revolution and harmonics, independent of "
+             "the load (runout, coupling misalignment)"),
 )}
+
+# Terms whose columns coincide on moving samples; only standstill samples separate them.
+AMBIGUOUS_PAIRS = (("offset", "coulomb_asymmetry"),)
 
 
 def units_of(kind_name):
@@ -241,8 +436,9 @@ class Term:
     def param_dict(self):
         """Return {param: value} (SI keys); zero lead-error harmonics are left out."""
         values = dataclasses.asdict(self.params)
-        if self.name == "lead_error":
-            values = {k: v for k, v in values.items() if v != 0.0}
+        if self.kind.sparse:
+            values = {k: v for k, v in values.items()
+                      if v != 0.0 or k not in self.kind.linear}
         return {k: float(v) for k, v in values.items()}
 
 
@@ -262,23 +458,37 @@ class TermSet:
         """Return the number of terms."""
         return len(self.terms)
 
-    def parts_nm(self, t_s, nut_angle_rad, nut_velocity_rad_s, axial_load_n):
+    def parts_nm(self, t_s, nut_angle_rad, nut_velocity_rad_s, axial_load_n,
+                 nut_accel_rad_s2=None):
         """Return each term's torque [N m] (a list of arrays, in order)."""
-        x = Inputs.of(t_s, nut_angle_rad, nut_velocity_rad_s, axial_load_n)
+        x = Inputs.of(t_s, nut_angle_rad, nut_velocity_rad_s, axial_load_n, nut_accel_rad_s2)
         return [t.torque_nm(x) for t in self.terms]
 
-    def torque_nm(self, t_s, nut_angle_rad, nut_velocity_rad_s, axial_load_n):
+    def torque_nm(self, t_s, nut_angle_rad, nut_velocity_rad_s, axial_load_n,
+                  nut_accel_rad_s2=None):
         """
         Return the added friction torque [N m] of all terms (numpy-vectorised, pure).
 
         ``t_s`` is the stamp relative to the first sample of the run (used by
-        ``thermal_drift`` only); the other inputs are as the model receives them.
+        ``thermal_drift`` only); ``nut_accel_rad_s2`` is needed by ``inertia`` only; the other
+        inputs are as the model receives them.
         """
-        x = Inputs.of(t_s, nut_angle_rad, nut_velocity_rad_s, axial_load_n)
+        x = Inputs.of(t_s, nut_angle_rad, nut_velocity_rad_s, axial_load_n, nut_accel_rad_s2)
         total = np.zeros_like(x.t_s)
         for t in self.terms:
             total = total + t.torque_nm(x)
         return total if total.ndim else float(total)
+
+    def acceleration_filter(self):
+        """Return the (cutoff_hz, max_gap_s) of the inertia terms' filter, or None."""
+        for t in self.terms:
+            if t.name == "inertia":
+                return (t.params.accel_cutoff_hz, t.params.max_gap_s)
+        return None
+
+    def live(self):
+        """Return a stateful per-sample evaluator (``LiveTerms``) for the runner."""
+        return LiveTerms(self)
 
     def to_list(self):
         """Return the YAML form: [{name, params: {key: value}}]."""
@@ -345,4 +555,162 @@ def load_terms(raw_list, path="empirical_terms"):
     if not isinstance(raw_list, list):
         raise ConfigError(f"{path}: expected a list of {{name, params}}, got "
                           f"{type(raw_list).__name__}")
-    return TermSet(_load_one(e, f"{path}[{i}]") for i, e in enumerate(raw_list))
+    terms = TermSet(_load_one(e, f"{path}[{i}]") for i, e in enumerate(raw_list))
+    filters = {(i, (t.params.accel_cutoff_hz, t.params.max_gap_s))
+               for i, t in enumerate(terms.terms) if t.name == "inertia"}
+    if len({f for _, f in filters}) > 1:
+        i = max(i for i, _ in filters)
+        raise ConfigError(f"{path}[{i}].params.accel_cutoff_hz: every inertia term of a model "
+                          "must use the same acceleration filter (one alpha per sample)")
+    return terms
+
+
+# --- acceleration: one filter, zero-phase for the analysis, causal in the runner -------------
+
+# Time resolution of the filter's step [s]: stamps closer than this are one instant, and the
+# discretisation is cached per step at this resolution (jittery 1 kHz stamps: a few hundred
+# distinct steps, not one per sample).
+FILTER_STEP_RESOLUTION_S = 1e-6
+
+
+@functools.lru_cache(maxsize=4096)
+def _filter_step(cutoff_hz, step_us):
+    """
+    Return (Phi, G0, G1) of one step of the velocity filter, exact for a linear input.
+
+    The filter is the 2nd-order Butterworth low-pass y'' + sqrt(2) wc y' + wc^2 y = wc^2 v
+    (state [y, y'], y' = alpha).  Over a step of dt the input is taken linear between the
+    two samples (first-order hold, exact for a ramp of velocity, i.e. constant acceleration):
+    s(dt) = Phi s(0) + G0 v0 + G1 (v1 - v0), from the matrix exponential of the augmented
+    system (van Loan).
+    """
+    from scipy.linalg import expm
+    dt = step_us * FILTER_STEP_RESOLUTION_S
+    wc = 2.0 * math.pi * cutoff_hz
+    m = np.zeros((4, 4))
+    m[0, 1] = 1.0
+    m[1, 0], m[1, 1], m[1, 2] = -wc * wc, -math.sqrt(2.0) * wc, wc * wc
+    m[2, 3] = 1.0 / dt
+    e = expm(m * dt)
+    return (float(e[0, 0]), float(e[0, 1]), float(e[1, 0]), float(e[1, 1]),
+            float(e[0, 2]), float(e[1, 2]), float(e[0, 3]), float(e[1, 3]))
+
+
+def filter_lag_s(cutoff_hz):
+    """Return the low-frequency group delay [s] of the causal filter: sqrt(2) / (2 pi fc)."""
+    return math.sqrt(2.0) / (2.0 * math.pi * cutoff_hz)
+
+
+class AccelerationFilter:
+    """
+    Causal nut acceleration from the nut velocity, one sample at a time (node and replay).
+
+    alpha is the derivative of the velocity low-passed by a 2nd-order Butterworth at
+    ``cutoff_hz`` (``_filter_step``).  It lags the true acceleration by about
+    sqrt(2) / (2 pi fc) (22 ms at 10 Hz: ``filter_lag_s``).  A new segment starts, with the
+    filter at rest on the new velocity (alpha = 0), at the first sample, after ``reset``, after
+    a backward stamp and after a step longer than ``max_gap_s``: the filter never runs across
+    a gap.  ``zero_phase_acceleration`` runs this same filter forward and backward.
+    """
+
+    def __init__(self, cutoff_hz, max_gap_s):
+        """Filter at ``cutoff_hz`` [Hz]; restart after gaps longer than ``max_gap_s`` [s]."""
+        if not (cutoff_hz > 0 and max_gap_s > 0):
+            raise ValueError(f"cutoff_hz and max_gap_s must be > 0, got {cutoff_hz}, "
+                             f"{max_gap_s}")
+        self.cutoff_hz = float(cutoff_hz)
+        self.max_gap_s = float(max_gap_s)
+        self.reset()
+
+    def reset(self):
+        """Forget the state: the next sample starts a new segment."""
+        self._stamp = None
+        self._v = self._y = self._a = 0.0
+
+    def update(self, stamp_s, velocity_rad_s):
+        """Take one sample; return the filtered acceleration [rad/s^2] at it."""
+        v = float(velocity_rad_s)
+        if self._stamp is not None:
+            dt = stamp_s - self._stamp
+            if 0.0 <= dt <= self.max_gap_s:
+                steps = int(round(dt / FILTER_STEP_RESOLUTION_S))
+                if steps > 0:
+                    p00, p01, p10, p11, g0y, g0a, g1y, g1a = _filter_step(self.cutoff_hz, steps)
+                    y, a = self._y, self._a
+                    self._y = p00 * y + p01 * a + g0y * self._v + g1y * (v - self._v)
+                    self._a = p10 * y + p11 * a + g0a * self._v + g1a * (v - self._v)
+                    self._stamp, self._v = stamp_s, v
+                return self._a
+        self._stamp, self._v, self._y, self._a = stamp_s, v, v, 0.0
+        return 0.0
+
+
+def segments(t_s, max_gap_s):
+    """Return [(start, stop)] of the continuous segments: split at backward stamps and gaps."""
+    t = np.asarray(t_s, dtype=float)
+    if t.size == 0:
+        return []
+    dt = np.diff(t)
+    cut = np.flatnonzero((dt < 0.0) | (dt > max_gap_s)) + 1
+    edges = np.concatenate(([0], cut, [t.size]))
+    return list(zip(edges[:-1].tolist(), edges[1:].tolist()))
+
+
+def zero_phase_acceleration(t_s, velocity_rad_s, cutoff_hz, max_gap_s, min_segment_samples=5):
+    """
+    Return the nut acceleration [rad/s^2] for analysis, with zero phase (no lag).
+
+    ``AccelerationFilter`` runs forward, then backward in time on its output, per continuous
+    segment.
+
+    The derivative is the backward pass's own rate state (negated: its time runs backwards),
+    so no numerical differentiation adds noise.  Segments shorter than
+    ``min_segment_samples`` get NaN: too short to derive an acceleration.
+    """
+    t = np.asarray(t_s, dtype=float)
+    v = np.asarray(velocity_rad_s, dtype=float)
+    out = np.full(t.size, np.nan)
+    for lo, hi in segments(t, max_gap_s):
+        if hi - lo < min_segment_samples:
+            continue
+        f = AccelerationFilter(cutoff_hz, math.inf)
+        y = np.empty(hi - lo)
+        for i in range(lo, hi):
+            f.update(t[i], v[i])
+            y[i - lo] = f._y
+        b = AccelerationFilter(cutoff_hz, math.inf)
+        for j, i in enumerate(range(hi - 1, lo - 1, -1)):
+            out[i] = -b.update(-t[i], y[hi - 1 - lo - j])
+    return out
+
+
+class LiveTerms:
+    """
+    A TermSet evaluated one sample at a time, with the causal acceleration filter.
+
+    The runner (node and replay alike) calls ``torque_nm`` per sample and ``reset`` when it
+    resets, so live equals replay; the analysis evaluates the same terms with the zero-phase
+    acceleration instead.
+    """
+
+    def __init__(self, terms):
+        """Wrap ``terms``; build its acceleration filter if it has an inertia term."""
+        self.terms = terms
+        spec = terms.acceleration_filter()
+        self.filter = AccelerationFilter(*spec) if spec else None
+        self.last_accel_rad_s2 = None
+
+    def reset(self):
+        """Restart the acceleration filter."""
+        self.last_accel_rad_s2 = None       # alpha at the last sample (None: no filter)
+        if self.filter is not None:
+            self.filter.reset()
+
+    def torque_nm(self, stamp_s, t_run_s, nut_angle_rad, nut_velocity_rad_s, axial_load_n):
+        """Return the terms' torque [N m] at one sample (updates the filter)."""
+        accel = None
+        if self.filter is not None:
+            accel = self.filter.update(stamp_s, nut_velocity_rad_s)
+        self.last_accel_rad_s2 = accel
+        return float(self.terms.torque_nm(t_run_s, nut_angle_rad, nut_velocity_rad_s,
+                                          axial_load_n, accel))

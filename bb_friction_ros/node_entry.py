@@ -21,15 +21,29 @@ class Shutdown(KeyboardInterrupt):
     """
 
 
+# Signals received during start-up.  An exception raised by a signal handler while a C
+# extension initialises (scipy, numba) surfaces as "ImportError: initialization failed", not
+# as the handler's exception, so the import's caller must know a signal came.
+_received = []
+
+
 def raise_shutdown(signum, frame):
     """Turn SIGTERM into an exception the start-up and spin code catch."""
+    _received.append(signum)
     raise Shutdown(signum)
 
 
+def raise_interrupt(signum, frame):
+    """SIGINT as Python's default handler does, remembering that it came."""
+    _received.append(signum)
+    raise KeyboardInterrupt
+
+
 def install_handlers():
-    """SIGTERM raises Shutdown (SIGINT already raises KeyboardInterrupt)."""
+    """SIGTERM raises Shutdown, SIGINT KeyboardInterrupt; both are remembered."""
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, raise_shutdown)
+        signal.signal(signal.SIGINT, raise_interrupt)
 
 
 def main(args=None):
@@ -39,24 +53,11 @@ def main(args=None):
         from bb_friction_ros.node import main as node_main
     except KeyboardInterrupt:       # SIGINT or SIGTERM (Shutdown) while importing
         return 0
-    except ImportError as exc:
-        # A signal inside a C extension's module init (rclpy's pybind11 module) comes out as
-        # ImportError("initialization failed") caused by the KeyboardInterrupt
-        if _interrupted(exc):
+    except ImportError:
+        if _received:               # the signal's exception, re-raised by an extension's init
             return 0
         raise
     return node_main(args)
-
-
-def _interrupted(exc):
-    """Return True if ``exc`` was caused by a KeyboardInterrupt (Shutdown included)."""
-    seen = set()
-    while exc is not None and id(exc) not in seen:
-        if isinstance(exc, KeyboardInterrupt):
-            return True
-        seen.add(id(exc))
-        exc = exc.__cause__ or exc.__context__
-    return False
 
 
 if __name__ == "__main__":

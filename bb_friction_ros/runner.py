@@ -162,6 +162,8 @@ class ModelRunner:
             raise ValueError(f"model_rate_hz must be > 0, got {model_rate_hz}")
         self.screw = screw
         self.terms = terms
+        # stateful per-sample evaluation: the inertia term's causal acceleration filter
+        self._live_terms = terms.live() if terms is not None else None
         self._first_stamp = None
         self.period_s = 1.0 / model_rate_hz
         self.stats = RunnerStats()
@@ -177,6 +179,8 @@ class ModelRunner:
         self._last_stamp = None
         self._model_stamp = None
         self._state = None
+        if self._live_terms is not None:
+            self._live_terms.reset()
         self._held = None
 
     def step_due(self, sample):
@@ -255,11 +259,13 @@ class ModelRunner:
                 self.stats.skipped_steps += 1
         st = self._state
         extra = 0.0
-        if self.terms is not None:
-            extra = float(self.terms.torque_nm(sample.stamp_s - self._first_stamp,
-                                               sample.nut_angle_rad, sample.nut_velocity_rad_s,
-                                               sample.axial_load_n))
+        if self._live_terms is not None:
+            extra = self._live_terms.torque_nm(
+                sample.stamp_s, sample.stamp_s - self._first_stamp, sample.nut_angle_rad,
+                sample.nut_velocity_rad_s, sample.axial_load_n)
         total = st.torque_total_nm + extra
+        if stepped:
+            self._update_held(total, sample.nut_velocity_rad_s)
         converged = self._state_converged
         if converged:
             ff, held = total, False
@@ -286,17 +292,19 @@ class ModelRunner:
         self.stats.model_steps += 1
         if not res.converged:
             self.stats.nonconverged_steps += 1
-        elif sample.nut_velocity_rad_s != 0.0:
-            extra = 0.0
-            if self.terms is not None:
-                extra = float(self.terms.torque_nm(
-                    sample.stamp_s - self._first_stamp, sample.nut_angle_rad,
-                    sample.nut_velocity_rad_s, sample.axial_load_n))
-            # the held value is the step's own total (terms at the step's inputs)
-            self._held = (res.torque_total_nm + extra, _sign(sample.nut_velocity_rad_s))
-        else:
-            self._held = None
         return res
+
+    def _update_held(self, total_nm, nut_velocity_rad_s):
+        """
+        Keep the feedforward to hold after the step just taken (module docstring).
+
+        ``total_nm`` is the step's own total: physics plus the terms at the step's inputs,
+        evaluated once per sample (the inertia term's causal filter advances with each call).
+        """
+        if not self._state_converged:
+            return
+        w = nut_velocity_rad_s
+        self._held = (total_nm, _sign(w)) if w != 0.0 else None
 
     def profile_seed(self, sample):
         """
@@ -305,9 +313,10 @@ class ModelRunner:
         The screw is copied shallowly: a step rebinds its state arrays and never writes
         into them, so stepping the copy leaves this runner's model untouched (tested).
         """
+        accel = None if self._live_terms is None else self._live_terms.last_accel_rad_s2
         return ProfileSeed(copy.copy(self.screw), sample, self._state.torque_total_nm,
                            self._state_converged, self.period_s, self.terms,
-                           sample.stamp_s - self._first_stamp)
+                           sample.stamp_s - self._first_stamp, accel)
 
 
 @dataclass(frozen=True)
@@ -321,6 +330,10 @@ class ProfileSeed:
     period_s: float
     terms: object
     run_time_s: float           # stamp since the run's first sample (empirical terms' time)
+    # the inertia term's causal acceleration at the sample, held over the horizon (the
+    # extrapolated velocity is constant, but the filter's alpha is the best guess of the
+    # inertia torque for the next few ms); None without an inertia term
+    nut_accel_rad_s2: object = None
 
 
 def look_ahead_profile(seed, horizon_periods=2.0, n_points=3, should_stop=None):
@@ -340,7 +353,8 @@ def look_ahead_profile(seed, horizon_periods=2.0, n_points=3, should_stop=None):
     def extra(t_s, angle):
         if seed.terms is None:
             return 0.0
-        return float(seed.terms.torque_nm(seed.run_time_s + t_s, angle, w, s.axial_load_n))
+        return float(seed.terms.torque_nm(seed.run_time_s + t_s, angle, w, s.axial_load_n,
+                                          seed.nut_accel_rad_s2))
 
     angles = [s.nut_angle_rad]
     torques = [seed.torque_total_nm + extra(0.0, s.nut_angle_rad)]

@@ -16,16 +16,67 @@ ALL_TERMS = [
     {"name": "lead_error", "params": {"sin1_m": 5e-6, "cos2_m": -1e-6}},
     {"name": "thermal_drift", "params": {"delta_torque_nm": -0.02, "time_constant_s": 30.0}},
 ]
+NEW_TERMS = [
+    {"name": "inertia", "params": {"j_kg_m2": 2e-4, "accel_cutoff_hz": 10.0, "max_gap_s": 0.05}},
+    {"name": "offset", "params": {"torque_nm": -0.01}},
+    {"name": "coulomb_asymmetry", "params": {"delta_torque_nm": 0.004}},
+    {"name": "viscous_asymmetry", "params": {"delta_c_nm_s_per_rad": -1e-4}},
+    {"name": "stroke_position", "params": {"center_rad": 50.0, "half_range_rad": 40.0,
+                                           "p1_nm": 0.01, "p2_nm": -0.004}},
+    {"name": "angle_ripple", "params": {"sin1_nm": 0.003, "cos2_nm": 0.001}},
+]
 
 
 def test_yaml_round_trip_gives_the_same_torque():
-    terms = load_terms(ALL_TERMS)
+    terms = load_terms(ALL_TERMS + NEW_TERMS)
     again = load_terms(terms.to_list())
-    assert again.names == tuple(e["name"] for e in ALL_TERMS)
+    assert again.names == tuple(e["name"] for e in ALL_TERMS + NEW_TERMS)
     t, phi, w, load = np.linspace(0, 10, 50), np.linspace(0, 20, 50), \
         np.linspace(-8, 8, 50), np.linspace(800, 2000, 50)
-    assert np.array_equal(terms.torque_nm(t, phi, w, load), again.torque_nm(t, phi, w, load))
+    accel = np.linspace(-100, 100, 50)
+    assert np.array_equal(terms.torque_nm(t, phi, w, load, accel),
+                          again.torque_nm(t, phi, w, load, accel))
     assert set(LIBRARY) == set(terms.names)
+    assert terms.to_list()[-2]["params"] == NEW_TERMS[-2]["params"]
+
+
+def test_new_terms_have_their_physical_shape():
+    """inertia J alpha; offset unsigned; asymmetries zero-mean; stroke, ripple as documented."""
+    w = np.array([-2.0, -1.0, 0.0, 1.0, 2.0])
+    accel = np.array([5.0, -3.0, 0.0, 1.0, 0.0])
+    one = {e["name"]: load_terms([e]) for e in NEW_TERMS}
+    assert np.allclose(one["inertia"].torque_nm(0.0, 0.0, w, 1.0, accel), 2e-4 * accel)
+    with pytest.raises(ValueError, match="acceleration"):
+        one["inertia"].torque_nm(0.0, 0.0, w, 1.0)
+    assert np.allclose(one["offset"].torque_nm(0.0, 0.0, w, 1.0), -0.01)
+    # positive direction's drag is +Delta/2 above the mean, the negative one's Delta/2 below:
+    # in torque (sign of omega) both are +Delta/2; nothing at standstill
+    ca = one["coulomb_asymmetry"].torque_nm(0.0, 0.0, w, 1.0)
+    assert np.allclose(ca, [0.002, 0.002, 0.0, 0.002, 0.002])
+    seal = load_terms([{"name": "seal_drag", "params": {"torque_nm": 0.03}}])
+    total = seal.torque_nm(0.0, 0.0, w, 1.0) + ca
+    assert total[4] == pytest.approx(0.032) and total[0] == pytest.approx(-0.028)
+    assert (total[4] - total[0]) / 2 == pytest.approx(0.03)     # seal keeps the mean
+    va = one["viscous_asymmetry"].torque_nm(0.0, 0.0, w, 1.0)
+    assert np.allclose(va, -0.5e-4 * np.abs(w))
+    # stroke: Legendre P1, P2 of the travel, signed by the motion, held beyond the stroke
+    phi = np.array([10.0, 50.0, 90.0, 500.0])
+    xi = np.clip((phi - 50.0) / 40.0, -1, 1)
+    expect = 0.01 * xi - 0.004 * 0.5 * (3 * xi ** 2 - 1)
+    assert np.allclose(one["stroke_position"].torque_nm(0.0, phi, 1.0, 1.0), expect)
+    assert np.allclose(one["stroke_position"].torque_nm(0.0, phi, -1.0, 1.0), -expect)
+    # ripple: independent of the load (lead_error is the load-scaled one)
+    phi = np.linspace(0, 2 * math.pi, 7)
+    r1 = one["angle_ripple"].torque_nm(0.0, phi, 1.0, 100.0)
+    r2 = one["angle_ripple"].torque_nm(0.0, phi, 1.0, 5000.0)
+    assert np.array_equal(r1, r2)
+    assert np.allclose(r1, 0.003 * np.sin(phi) + 0.001 * np.cos(2 * phi))
+
+
+def test_inertia_terms_must_share_one_filter():
+    other = dict(NEW_TERMS[0], params=dict(NEW_TERMS[0]["params"], accel_cutoff_hz=20.0))
+    with pytest.raises(ConfigError, match=r"empirical_terms\[1\].params.accel_cutoff_hz"):
+        load_terms([NEW_TERMS[0], other])
 
 
 @pytest.mark.parametrize("raw, key", [
@@ -52,7 +103,8 @@ def test_edge_units_and_no_terms():
     assert len(load_terms(None)) == 0 and TermSet().torque_nm(0.0, 0.0, 1.0, 1000.0) == 0.0
 
 
-@pytest.mark.parametrize("entry", [e for e in ALL_TERMS if e["name"] != "lead_error"])
+@pytest.mark.parametrize("entry", [e for e in ALL_TERMS if e["name"] != "lead_error"]
+                         + [NEW_TERMS[4]])
 def test_dissipative_terms_oppose_motion_and_vanish_at_standstill(entry):
     term = load_terms([entry])
     w = np.array([-5.0, -0.5, 0.0, 0.5, 5.0])

@@ -217,35 +217,28 @@ def test_early_signal_exits_cleanly(sig, delay_s):
     assert proc.returncode == 0, err
 
 
-@pytest.mark.parametrize("cause", [KeyboardInterrupt, None])
-def test_signal_inside_rclpy_c_extension_init_is_a_clean_exit(monkeypatch, cause):
-    """
-    Finding 4: a SIGTERM during rclpy's pybind11 module init surfaces as ImportError.
+def test_signal_inside_an_extension_import_exits_cleanly(monkeypatch):
+    """Finding 4: a signal while scipy/numba initialise surfaces as ImportError: still exit 0.
 
-    ("initialization failed", caused by the handler's Shutdown; seen under colcon test.)  It is
-    a clean exit; an ImportError of any other cause is still raised.
+    Seen under load in test_early_signal_exits_cleanly ("ImportError: initialization failed");
+    simulated here, because the timing cannot be forced.  Without a signal the error stays.
     """
     import builtins
     from bb_friction_ros import node_entry
     real_import = builtins.__import__
 
-    def importing(name, *args, **kwargs):
+    def failing_import(name, *args, **kwargs):
         if name == "bb_friction_ros.node":
-            try:
-                if cause is not None:
-                    raise node_entry.Shutdown(signal.SIGTERM)
-                raise OSError("libfoo.so: cannot open shared object file")
-            except (KeyboardInterrupt, OSError) as exc:
-                raise ImportError("initialization failed") from exc
+            raise ImportError("initialization failed")
         return real_import(name, *args, **kwargs)
 
+    monkeypatch.setattr(builtins, "__import__", failing_import)
     monkeypatch.setattr(node_entry, "install_handlers", lambda: None)
-    monkeypatch.setattr(builtins, "__import__", importing)
-    if cause is None:
-        with pytest.raises(ImportError):
-            node_entry.main()
-    else:
-        assert node_entry.main() == 0
+    monkeypatch.setattr(node_entry, "_received", [])
+    with pytest.raises(ImportError):
+        node_entry.main([])
+    monkeypatch.setattr(node_entry, "_received", [signal.SIGTERM])
+    assert node_entry.main([]) == 0
 
 
 def test_empty_nut_joint_is_refused(ros_context):

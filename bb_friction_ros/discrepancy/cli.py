@@ -11,6 +11,11 @@ or settings file raises ConfigError, which the main CLI prints with status 2.
 import json
 import sys
 
+# --baseline choices: "model" predicts with the ball-screw model, "zero" has no model (every
+# term is identified from the measured torque).  Here, not in data.py: parsing the command
+# line must not import the model stack.
+BASELINES = ("model", "zero")
+
 
 def add_discrepancy_parser(subparsers):
     """Register ``discrepancy`` on ``subparsers``."""
@@ -33,6 +38,13 @@ def add_discrepancy_parser(subparsers):
     Topics.add_arguments(p)
     p.add_argument("--recompute-prediction", action="store_true",
                    help="CSV input: run the model even if the CSV has torque_pred_nm")
+    p.add_argument("--validate", metavar="DATA2", help="a second recording (bag or CSV): the "
+                   "augmented model is applied to it without refitting; writes "
+                   "DIR/validation/prediction.csv and summary.json['validation']")
+    p.add_argument("--baseline", choices=BASELINES, default="model",
+                   help="model: residual = measured - the ball-screw model; zero: no model of "
+                   "this screw, every term is identified from the measured torque (a CSV "
+                   "whose torque_pred_nm is 0 does the same)")
     p.add_argument("--no-plots", action="store_true", help="write no PNG figures")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--json", action="store_true", help="print summary.json to stdout")
@@ -54,7 +66,8 @@ def run_discrepancy_command(args):
             args.input, args.out, config=args.config, settings=settings,
             replay_settings=replay_settings, topics=Topics.from_args(args),
             recompute=args.recompute_prediction, plots=not args.no_plots,
-            progress=not args.no_progress)
+            progress=not args.no_progress, validate_path=args.validate,
+            baseline=args.baseline)
     except InputProblem as exc:
         print(f"bb-friction discrepancy: {exc}", file=sys.stderr)
         return 2
@@ -70,5 +83,10 @@ def run_discrepancy_command(args):
         print(f"verdict: {summary['verdict']} ({effects}); held-out RMSE "
               f"{summary['rmse_before_nm']:.4g} -> {summary['rmse_after_nm']:.4g} N m; noise "
               f"{summary['noise_std_nm']:.3g} N m")
+        v = summary.get("validation")
+        if v:
+            print(f"validation on {v['input']}: RMSE {v['rmse_before_nm']:.4g} -> "
+                  f"{v['rmse_after_nm']:.4g} N m; relative error "
+                  f"{v['relative_error_before']:.3g} -> {v['relative_error_after']:.3g}")
     print(f"outputs in {args.out}", file=sys.stderr if args.json else sys.stdout)
     return status

@@ -4,17 +4,28 @@ A recording with measured and predicted torque, from a rosbag2 or a CSV file.
 The prediction always comes from the replay path (``replay.run_events``: the live node's
 ``InputAssembler`` and ``ModelRunner``), so the residual is what the node would show.
 
-CSV input: a header row and one row per nut-state sample with the columns ``t_s,
-nut_angle_rad, nut_velocity_rad_s, axial_load_n, torque_meas_nm`` (SI; other columns are
-ignored).  ``bb-friction replay``'s own ``prediction.csv`` qualifies when it has
-``torque_meas_nm``; its ``torque_pred_nm`` is then reused as the prediction (it came out of
-the same model path), unless ``recompute`` is set.  Rows with a non-finite measured torque
-are kept for the model (continuity of the ball state) but not analysed.
+CSV input: a header row and one row per nut-state sample with the columns ``t_s, nut_angle_rad,
+nut_velocity_rad_s, axial_load_n, torque_meas_nm`` (SI; other columns are ignored; an optional
+``nut_accel_rad_s2`` overrides the acceleration the workflow derives). The file may start with
+a UTF-8 byte-order mark. Its rows must be in time order; a file of several runs (the stamps
+restart, as in a looped bag's ``prediction.csv``) is read as consecutive runs when each run has
+at least ``MIN_RUN_ROWS`` rows, and a file whose time goes backwards more often (shuffled or
+reversed rows) is refused. ``bb-friction replay``'s own ``prediction.csv`` qualifies when it
+has ``torque_meas_nm``; its ``torque_pred_nm`` is then reused as the prediction (it came out of
+the same model path), unless ``recompute`` is set. Rows with a non-finite measured torque are
+kept for the model (continuity of the ball state) but not analysed.
 """
 
+from array import array
+from collections import Counter
 import csv
 import dataclasses
+import itertools
+import math
 from pathlib import Path
+import sys
+from types import SimpleNamespace
+from typing import Optional
 
 import numpy as np
 
@@ -29,6 +40,15 @@ from bb_friction_ros.runner import build_runner, InputAssembler
 CSV_REQUIRED = ("t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n",
                 "torque_meas_nm")
 CSV_PREDICTION = "torque_pred_nm"
+CSV_ACCELERATION = "nut_accel_rad_s2"
+# Rows a run of a multi-run CSV needs: fewer between two backward steps of t_s is not a run
+# but rows out of order (a shuffled or reversed file).
+MIN_RUN_ROWS = 10
+# Events per call of the replay path: each chunk's predictions are packed into float arrays
+# before the next chunk is read, so a long bag is never in memory as Python objects (issue
+# #13, finding 26: a 10-minute 1 kHz bag peaked at 928 MB as lists of events and
+# predictions).
+EVENTS_PER_CHUNK = 65536
 
 
 class InputProblem(ValueError):
@@ -48,11 +68,13 @@ class Recording:
     torque_pred_nm: np.ndarray
     converged: np.ndarray           # bool
     info: dict = dataclasses.field(default_factory=dict)
+    nut_accel_rad_s2: Optional[np.ndarray] = None    # None: derived by the workflow
 
     def take(self, mask):
         """Return the sub-recording of the samples where ``mask`` is true."""
-        arrays = {f.name: getattr(self, f.name)[mask] for f in dataclasses.fields(self)
+        arrays = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
                   if f.name != "info"}
+        arrays = {k: (None if v is None else v[mask]) for k, v in arrays.items()}
         return Recording(info=dict(self.info), **arrays)
 
     def __len__(self):
@@ -75,107 +97,263 @@ def run_times(stamps_s):
 def inputs_of(rec, mask=None):
     """Return the empirical_terms.Inputs of a recording (or of the samples in ``mask``)."""
     sel = slice(None) if mask is None else mask
+    accel = None if rec.nut_accel_rad_s2 is None else rec.nut_accel_rad_s2[sel]
     return Inputs.of(rec.t_run_s[sel], rec.nut_angle_rad[sel], rec.nut_velocity_rad_s[sel],
-                     rec.axial_load_n[sel])
+                     rec.axial_load_n[sel], accel)
+
+
+class Packed:
+    """
+    Per-sample columns of predictions (or of bare input samples), packed as they arrive.
+
+    ``array`` holds 8 bytes a value where a Prediction object costs hundreds.
+    """
+
+    COLUMNS = ("stamp_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n",
+               "torque_total_nm")
+
+    def __init__(self):
+        """Start empty."""
+        self.cols = {c: array("d") for c in self.COLUMNS}
+        self.converged = array("b")
+
+    def add(self, p, torque_nm=None, converged=True):
+        """Append a Prediction, or an input sample with ``torque_nm`` and ``converged``."""
+        for c in self.COLUMNS[:4]:
+            self.cols[c].append(getattr(p, c))
+        self.cols["torque_total_nm"].append(p.torque_total_nm if torque_nm is None
+                                            else torque_nm)
+        self.converged.append(p.converged if torque_nm is None else converged)
+
+    def __len__(self):
+        """Return the number of samples."""
+        return len(self.converged)
+
+    def column(self, name):
+        """Return column ``name`` as a float array (no copy)."""
+        return np.frombuffer(self.cols[name], dtype=float) if len(self) else np.zeros(0)
+
+
+def _chunks(events, progress):
+    it = iter(events)
+    if progress:
+        from tqdm import tqdm
+        it = tqdm(it, desc="replay", unit="msg", file=sys.stderr, mininterval=0.5)
+    while True:
+        chunk = list(itertools.islice(it, EVENTS_PER_CHUNK))
+        if not chunk:
+            return
+        yield chunk
 
 
 def predict_events(events, config_path, replay_settings, progress=False):
-    """Run events through the replay path; return (predictions, runner stats)."""
+    """
+    Run events (any iterable, consumed once) through the replay path.
+
+    Return (Packed predictions, runner stats).  The events go through ``replay.run_events``
+    a chunk at a time with one runner and assembler, so the result is the same as in one call.
+    """
     runner = build_runner(config_path, replay_settings.model_rate_hz)
     assembler = InputAssembler(replay_settings.nut_joint, replay_settings.max_axial_load_n)
-    preds = run_events(events, runner, assembler, progress=progress)
-    return preds, runner.stats
+    packed = Packed()
+    for chunk in _chunks(events, progress):
+        for p in run_events(chunk, runner, assembler):
+            packed.add(p)
+    return packed, runner.stats
 
 
-def _from_predictions(preds, measured_nm, config_path, info):
-    t = np.array([p.stamp_s for p in preds], dtype=float)
-    t_run = run_times(t)
-    angle = np.array([p.nut_angle_rad for p in preds], dtype=float)
-    speed = np.array([p.nut_velocity_rad_s for p in preds], dtype=float)
-    load = np.array([p.axial_load_n for p in preds], dtype=float)
-    pred = np.array([p.torque_total_nm for p in preds], dtype=float)
-    info["base_terms"] = list(load_model_file(config_path)[1].names)   # in pred already
-    return Recording(t, t_run, angle, speed, load, np.asarray(measured_nm, dtype=float), pred,
-                     np.array([p.converged for p in preds], dtype=bool), info)
+def _from_packed(packed, measured_nm, info, base_terms=()):
+    t = packed.column("stamp_s")
+    info["base_terms"] = list(base_terms)     # in the prediction already
+    return Recording(t, run_times(t), packed.column("nut_angle_rad"),
+                     packed.column("nut_velocity_rad_s"), packed.column("axial_load_n"),
+                     np.asarray(measured_nm, dtype=float), packed.column("torque_total_nm"),
+                     np.frombuffer(packed.converged, dtype=np.int8).astype(bool), info)
+
+
+def zero_baseline_events(events, replay_settings):
+    """
+    Return the nut-state samples of ``events`` without a model (``--baseline zero``).
+
+    Return (Packed samples with torque 0, rejected inputs by reason).
+    """
+    from bb_friction_ros.runner import InputError
+    assembler = InputAssembler(replay_settings.nut_joint, replay_settings.max_axial_load_n)
+    packed, rejected = Packed(), {}
+    for e in events:
+        try:
+            if e.kind == "axial_load":
+                assembler.on_axial_load(e.value)
+            elif e.kind == "nut_state":
+                packed.add(assembler.on_nut_state(e.stamp_s, e.names, e.positions,
+                                                  e.velocities), torque_nm=0.0)
+        except InputError as exc:
+            rejected[exc.reason] = rejected.get(exc.reason, 0) + 1
+    return packed, rejected
+
+
+def _split_measured(events, stamps, values):
+    """Yield the input events; append the measured torque's stamps and values instead."""
+    for e in events:
+        if e.kind == "measured_torque":
+            if math.isfinite(e.value):
+                stamps.append(e.stamp_s)
+                values.append(e.value)
+        else:
+            yield e
 
 
 def load_bag(path, config_path, replay_settings=NodeParameters(), topics=Topics(),
-             progress=False):
-    """Read a rosbag2, predict through the replay path, align the measured torque."""
+             progress=False, baseline="model"):
+    """
+    Read a rosbag2, predict through the replay path, align the measured torque.
+
+    The bag is streamed: inputs go through the model as they are read, and predictions and
+    measurements are kept as packed float columns only.
+    """
     try:
-        with BagInput(path, topics) as src:
-            events = [ev for _, _, _, ev in src.messages(all_topics=False)]
+        src = BagInput(path, topics)
     except (FileNotFoundError, ValueError) as exc:
         raise InputProblem(str(exc)) from exc
-    counts = dict(src.counts)
-    if measured_torque_at(events, []) is None:
-        raise InputProblem(f"{path}: no measured torque: topic {topics.measured_torque!r} "
-                           f"is missing or empty (topics in the bag: "
-                           f"{', '.join(sorted(counts)) or 'none'}); the discrepancy needs "
-                           "a measurement to compare with (--measured-topic)")
-    preds, stats = predict_events(events, config_path, replay_settings, progress)
-    if not preds:      # the reasons, what the bag holds and the fix, as replay says them
-        raise InputProblem(nothing_accepted_message(src, stats, replay_settings))
-    meas = measured_torque_at(events, [p.stamp_s for p in preds])   # as replay aligns it
-    info = {"input": str(path), "format": "rosbag2", "prediction_source": "model (replay path)",
-            "messages": counts, "rejected": dict(stats.rejected),
-            "nonconverged_steps": stats.nonconverged_steps, "resets": stats.resets}
-    return _from_predictions(preds, meas, config_path, info)
+    with src:
+        return _load_bag_input(src, path, config_path, replay_settings, topics, progress,
+                               baseline)
 
 
-def _read_csv_columns(path):
+def _load_bag_input(src, path, config_path, replay_settings, topics, progress, baseline):
+    counts = src.counts                  # messages actually read, filled as the bag streams
+    events = (ev for _, _, _, ev in src.messages(all_topics=False))
+
+    def no_measurement():
+        return InputProblem(f"{path}: no measured torque: topic {topics.measured_torque!r} "
+                            f"is missing or empty (topics in the bag: {src.describe()}); the "
+                            "discrepancy needs a measurement to compare with "
+                            "(--measured-topic)")
+    measured = [c.msgcount for c in src.connections
+                if c.topic.lstrip("/") == topics.measured_torque.lstrip("/")]
+    if not any(measured):
+        raise no_measurement()        # before running the model over the whole bag
+    meas_t, meas_v = array("d"), array("d")
+    inputs = _split_measured(events, meas_t, meas_v)
+    if baseline == "zero":
+        packed, rejected = zero_baseline_events(inputs, replay_settings)
+        info = {"input": str(path), "format": "rosbag2", "baseline": "zero",
+                "prediction_source": "none (--baseline zero: no model of this screw)",
+                "messages": dict(counts), "rejected": rejected}
+        base = ()
+    else:
+        packed, stats = predict_events(inputs, config_path, replay_settings, progress)
+        rejected = dict(stats.rejected)
+        info = {"input": str(path), "format": "rosbag2",
+                "prediction_source": "model (replay path)", "messages": dict(counts),
+                "rejected": rejected, "nonconverged_steps": stats.nonconverged_steps,
+                "resets": stats.resets}
+        base = load_model_file(config_path)[1].names
+    if not meas_t:
+        raise no_measurement()
+    if not len(packed):   # the reasons, what the bag holds and the fix, as replay says them
+        raise InputProblem(nothing_accepted_message(
+            src, SimpleNamespace(rejected=Counter(rejected)), replay_settings))
+    measured_events = (Event("measured_torque", t, value=v) for t, v in zip(meas_t, meas_v))
+    meas = measured_torque_at(measured_events, packed.column("stamp_s"))   # as replay does
+    return _from_packed(packed, meas, info, base)
+
+
+def _read_csv_columns(path, required=CSV_REQUIRED):
     try:
-        fh = open(path, newline="")
+        # utf-8-sig: a spreadsheet's byte-order mark would otherwise glue itself to "t_s"
+        fh = open(path, newline="", encoding="utf-8-sig")
     except OSError as exc:
         raise InputProblem(f"{path}: cannot read ({exc.strerror})") from exc
     with fh:
         reader = csv.DictReader(fh)
-        header = reader.fieldnames or []
-        missing = [c for c in CSV_REQUIRED if c not in header]
+        try:
+            header = reader.fieldnames or []
+        except UnicodeDecodeError as exc:
+            raise InputProblem(f"{path}: not a UTF-8 text CSV ({exc.reason})") from None
+        missing = [c for c in required if c not in header]
         if missing:
             raise InputProblem(f"{path}: CSV lacks column(s) {', '.join(missing)} (needs "
-                               f"{', '.join(CSV_REQUIRED)}; optional {CSV_PREDICTION}); "
-                               f"has: {', '.join(header) or 'no header'}")
-        wanted = list(CSV_REQUIRED) + ([CSV_PREDICTION] if CSV_PREDICTION in header else [])
+                               f"{', '.join(required)}; optional {CSV_PREDICTION}, "
+                               f"{CSV_ACCELERATION}); has: {', '.join(header) or 'no header'}")
+        wanted = list(required) + [c for c in (CSV_PREDICTION, CSV_ACCELERATION)
+                                   if c in header and c not in required]
         cols = {c: [] for c in wanted}
-        for line, row in enumerate(reader, start=2):
-            for c in wanted:
-                try:
-                    cols[c].append(float(row[c]))
-                except (TypeError, ValueError):
-                    raise InputProblem(f"{path}: line {line}, column {c}: not a number "
-                                       f"({row[c]!r})") from None
+        try:
+            for line, row in enumerate(reader, start=2):
+                for c in wanted:
+                    try:
+                        cols[c].append(float(row[c]))
+                    except (TypeError, ValueError):
+                        raise InputProblem(f"{path}: line {line}, column {c}: not a number "
+                                           f"({row[c]!r})") from None
+        except UnicodeDecodeError as exc:
+            raise InputProblem(f"{path}: not a UTF-8 text CSV ({exc.reason})") from None
     return {c: np.array(v, dtype=float) for c, v in cols.items()}
 
 
+def check_time_order(path, t_s):
+    """
+    Refuse rows out of time order; return the number of runs (restarts of t_s).
+
+    A restart of the stamps begins a new run (the runner resets there, as for a looped
+    bag).  Runs shorter than MIN_RUN_ROWS rows mean the rows are shuffled or reversed: the
+    file is refused, naming the first backward line, rather than analysed as thousands of
+    tiny runs with a wrong verdict.
+    """
+    back = np.flatnonzero(np.diff(t_s) < 0.0) + 1
+    starts = np.concatenate(([0], back, [t_s.size]))
+    lengths = np.diff(starts)
+    if back.size and lengths.min() < MIN_RUN_ROWS:
+        i = int(back[0])
+        raise InputProblem(
+            f"{path}: rows are not in time order: line {i + 2} has t_s = {t_s[i]:.9g} after "
+            f"{t_s[i - 1]:.9g} ({back.size} backward step(s), shortest run {lengths.min()} "
+            f"row(s)); sort the file by t_s, or give each run of a multi-run file at least "
+            f"{MIN_RUN_ROWS} rows")
+    return int(back.size) + 1
+
+
 def csv_events(cols, nut_joint):
-    """Return the events a CSV stands for: each row's axial load, then its nut state."""
-    events = []
+    """Yield the events a CSV stands for: each row's axial load, then its nut state."""
     for t, a, w, f in zip(cols["t_s"], cols["nut_angle_rad"], cols["nut_velocity_rad_s"],
                           cols["axial_load_n"]):
-        events.append(Event("axial_load", float(t), value=float(f)))
-        events.append(Event("nut_state", float(t), (nut_joint,), (float(a),), (float(w),)))
-    return events
+        yield Event("axial_load", float(t), value=float(f))
+        yield Event("nut_state", float(t), (nut_joint,), (float(a),), (float(w),))
 
 
 def load_csv(path, config_path, replay_settings=NodeParameters(), recompute=False,
-             progress=False):
+             progress=False, baseline="model"):
     """Read a CSV recording; reuse its ``torque_pred_nm`` unless ``recompute`` (see module)."""
     cols = _read_csv_columns(path)
     if cols["t_s"].size == 0:
         raise InputProblem(f"{path}: CSV has no data rows")
-    for c in ("t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n"):
-        if not np.all(np.isfinite(cols[c])):
-            raise InputProblem(f"{path}: column {c} has non-finite values")
-    info = {"input": str(path), "format": "csv"}
-    if CSV_PREDICTION in cols and not recompute:
-        t_run = run_times(cols["t_s"])
-        info.update(prediction_source=f"csv column {CSV_PREDICTION} (reused)",
-                    base_terms=[])
+    for c in ("t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n", CSV_ACCELERATION):
+        if c in cols and not np.all(np.isfinite(cols[c])):
+            line = int(np.flatnonzero(~np.isfinite(cols[c]))[0]) + 2
+            raise InputProblem(f"{path}: column {c} has non-finite values (first at line "
+                               f"{line})")
+    runs = check_time_order(path, cols["t_s"])
+    accel = cols.get(CSV_ACCELERATION)
+    info = {"input": str(path), "format": "csv", "runs": runs,
+            "acceleration_source": f"csv column {CSV_ACCELERATION}" if accel is not None
+            else "derived (zero-phase filter)"}
+    t_run = run_times(cols["t_s"])
+    if baseline == "zero" or (CSV_PREDICTION in cols and not recompute):
+        if baseline == "zero":
+            pred = np.zeros(cols["t_s"].size)
+            info.update(prediction_source="none (--baseline zero: no model of this screw)",
+                        baseline="zero", base_terms=[])
+        else:
+            pred = cols[CSV_PREDICTION]
+            info.update(prediction_source=f"csv column {CSV_PREDICTION} (reused)",
+                        base_terms=[])
+            if np.all(pred == 0.0):
+                info["baseline"] = "zero"
         return Recording(cols["t_s"], t_run, cols["nut_angle_rad"],
                          cols["nut_velocity_rad_s"], cols["axial_load_n"],
-                         cols["torque_meas_nm"], cols[CSV_PREDICTION],
-                         np.ones(cols["t_s"].size, dtype=bool), info)
+                         cols["torque_meas_nm"], pred,
+                         np.ones(cols["t_s"].size, dtype=bool), info, accel)
     preds, stats = predict_events(csv_events(cols, replay_settings.nut_joint), config_path,
                                   replay_settings, progress)
     if len(preds) != cols["t_s"].size:
@@ -184,20 +362,23 @@ def load_csv(path, config_path, replay_settings=NodeParameters(), recompute=Fals
     info.update(prediction_source="model (replay path, recomputed from the CSV inputs)",
                 rejected=dict(stats.rejected), nonconverged_steps=stats.nonconverged_steps,
                 resets=stats.resets)
-    return _from_predictions(preds, cols["torque_meas_nm"], config_path, info)
+    rec = _from_packed(preds, cols["torque_meas_nm"], info,
+                       load_model_file(config_path)[1].names)
+    rec.nut_accel_rad_s2 = accel
+    return rec
 
 
 def load_recording(path, config_path=None, replay_settings=NodeParameters(), topics=Topics(),
-                   recompute=False, progress=False):
+                   recompute=False, progress=False, baseline="model"):
     """Load a rosbag2 directory or a ``.csv`` file (see module docstring)."""
     path = Path(path)
     config_path = config_path or bundled_config("ball_screw.yaml")
     if not Path(config_path).is_file():
         raise ConfigError(f"{config_path}: no such config file")
     if path.is_dir():
-        return load_bag(path, config_path, replay_settings, topics, progress)
+        return load_bag(path, config_path, replay_settings, topics, progress, baseline)
     if path.is_file() and path.suffix.lower() == ".csv":
-        return load_csv(path, config_path, replay_settings, recompute, progress)
+        return load_csv(path, config_path, replay_settings, recompute, progress, baseline)
     if not path.exists():
         raise InputProblem(f"{path}: no such bag or CSV file")
     raise InputProblem(f"{path}: neither a rosbag2 directory nor a .csv file")

@@ -1,13 +1,15 @@
 """
 Where the model disagrees: the noise level and the residual per operating regime.
 
-The noise level is estimated from the data, not assumed: the residual's first differences
-remove everything that changes slowly from sample to sample (every candidate effect does),
-and a median absolute deviation ignores the few steps at reversals.  For white noise of std
-sigma the differences have std sigma sqrt(2).
+The noise level is estimated from the data, not assumed: the residual's differences remove
+everything that changes slowly from sample to sample (every candidate effect does), and a
+median absolute deviation ignores the few steps at reversals.  For white noise of std sigma
+the differences have std sigma sqrt(2).  Measured torque is often smooth at the sample rate,
+so the lag grows until the noise has decorrelated (``noise_model``).
 
 A regime is a bin of one variable: direction, |nut speed| per direction, nut angle within a
-revolution, axial load, time.  Per bin we report the mean residual and the mean "drag excess"
+revolution, axial load, time, acceleration (accelerating / decelerating) and the nut's travel
+along the stroke.  Per bin we report the mean residual and the mean "drag excess"
 (residual times sign(omega), over moving samples: a dissipative effect cancels in the plain
 mean over both directions but not in this one), each with its z-value against the noise
 standard error.
@@ -22,14 +24,116 @@ import numpy as np
 MAD_TO_STD = 1.4826
 
 
-def noise_std_nm(residual_nm):
-    """Return the robust noise std [N m] of a residual from its first differences."""
-    r = np.asarray(residual_nm, dtype=float)
-    r = r[np.isfinite(r)]
-    if r.size < 3:
+# Two samples are in the same operating state when their speeds differ by less than this
+# fraction: then every candidate effect (a function of speed, direction, slow time) is nearly
+# equal at both, and their difference is noise.
+SAME_STATE_SPEED_FRACTION = 0.05
+# Pairs a lag needs for its estimate to count (fewer: the lag is too long for the recording).
+MIN_NOISE_PAIRS = 100
+
+
+def _diff_std(r, lag, same=None):
+    d = r[lag:] - r[:-lag]
+    if same is not None:
+        d = d[same(lag)]
+    if d.size < MIN_NOISE_PAIRS:
         return float("nan")
-    d = np.diff(r)
     return float(MAD_TO_STD * np.median(np.abs(d - np.median(d))) / math.sqrt(2.0))
+
+
+def _same_state(velocity, stamps):
+    """
+    Return lag -> mask of the pairs (i, i + lag) in one operating state and one run.
+
+    The speed tolerance is SAME_STATE_SPEED_FRACTION of the speed, and at least 3 times the
+    velocity signal's own sample-to-sample scatter (a quantised encoder speed jitters by a
+    count: that is still one operating state).
+    """
+    w = np.asarray(velocity, dtype=float)
+    run = np.cumsum(np.concatenate(([0], np.diff(stamps) < 0.0))) if stamps is not None \
+        else np.zeros(w.size)
+    dw = np.diff(w)
+    jitter = 3.0 * MAD_TO_STD * float(np.median(np.abs(dw - np.median(dw)))) \
+        if dw.size else 0.0
+
+    def same(lag):
+        a, b = w[:-lag], w[lag:]
+        tol = np.maximum(SAME_STATE_SPEED_FRACTION * np.maximum(np.abs(a), np.abs(b)), jitter)
+        return (np.abs(a - b) <= tol) & (np.sign(a) == np.sign(b)) & \
+            (run[:-lag] == run[lag:])
+    return same
+
+
+@dataclasses.dataclass(frozen=True)
+class NoiseModel:
+    """
+    The noise of a residual: its std and its integrated autocorrelation time.
+
+    ``std_nm`` is the plateau of the lag-L difference estimate (below), ``lag`` the L it was
+    read at, ``std_lag1_nm`` the classic lag-1 value and ``tau`` (samples, >= 1) the
+    integrated autocorrelation time 1 + 2 sum_k rho_k, with rho_k = 1 - (std_k / std)^2
+    from the lag-k estimates (interpolated between the doubling lags, 0 beyond L).  A mean
+    over n samples then has the standard error std sqrt(tau / n), and the evidence of n
+    correlated samples is that of n / tau independent ones.
+    """
+
+    std_nm: float
+    std_lag1_nm: float
+    lag: int
+    tau: float
+
+    def as_dict(self):
+        """Return the JSON form."""
+        return {"std_nm": self.std_nm, "std_lag1_nm": self.std_lag1_nm, "lag_samples": self.lag,
+                "autocorrelation_time_samples": self.tau}
+
+
+def noise_model(residual_nm, max_lag=64, plateau_ratio=1.1, velocity=None, stamps=None):
+    """
+    Estimate the noise of a residual [N m] from its differences at growing lags.
+
+    The MAD of lag-L differences, x 1.4826 / sqrt(2), is the noise std once the noise has
+    decorrelated over L samples, while every candidate effect (slow in time) still cancels
+    and the MAD ignores the few steps at reversals.  White noise decorrelates at L = 1.
+    Measured torque is often smooth at the sample rate (an averaging recorder, a sensor
+    filter): its noise is correlated, the lag-1 estimate is several times too small, and a
+    regime table built on it calls everything significant.  So L doubles from 1 until the
+    estimate grows by less than ``plateau_ratio`` (or reaches ``max_lag``).
+
+    With the nut ``velocity`` (and ``stamps``, whose backward steps start new runs), only
+    pairs of samples in the same operating state count at lags above 1: the same direction,
+    speeds within SAME_STATE_SPEED_FRACTION, one run.  So a long lag does not straddle a
+    reversal or a speed change, where the effects themselves step.
+    """
+    r = np.asarray(residual_nm, dtype=float)
+    ok = np.isfinite(r)
+    r = r[ok]
+    if r.size < 3:
+        return NoiseModel(float("nan"), float("nan"), 1, 1.0)
+    same = None
+    if velocity is not None:
+        same = _same_state(np.asarray(velocity, float)[ok],
+                           None if stamps is None else np.asarray(stamps, float)[ok])
+    s1 = _diff_std(r, 1)
+    lags, stds = [1], [s1]
+    while 2 * lags[-1] <= max_lag and 2 * lags[-1] < r.size // 4:
+        s2 = _diff_std(r, 2 * lags[-1], same)
+        if not s2 < math.inf or s2 < plateau_ratio * stds[-1]:
+            break
+        lags.append(2 * lags[-1])
+        stds.append(s2)
+    lag, s = lags[-1], stds[-1]
+    tau = 1.0
+    if s > 0 and lag > 1:
+        rho = np.clip(1.0 - (np.array(stds) / s) ** 2, 0.0, 1.0)
+        k = np.arange(1, lag + 1)
+        tau = 1.0 + 2.0 * float(np.sum(np.interp(k, lags, rho)))
+    return NoiseModel(s, s1, lag, tau)
+
+
+def noise_std_nm(residual_nm):
+    """Return the robust noise std [N m] of a residual (``noise_model`` with defaults)."""
+    return noise_model(residual_nm).std_nm
 
 
 @dataclasses.dataclass(frozen=True)
@@ -46,6 +150,10 @@ class Bin:
 def _value(variable, x):
     if variable in ("direction", "speed"):
         return np.abs(x.nut_velocity_rad_s)
+    if variable == "acceleration":
+        return x.nut_accel_rad_s2
+    if variable == "stroke":
+        return x.nut_angle_rad
     if variable == "angle":
         return np.mod(x.nut_angle_rad, 2.0 * math.pi)
     if variable == "load":
@@ -98,6 +206,15 @@ def make_bins(x, settings):
         edges = _quantile_edges(values, n)
         for lo, hi in zip(edges[:-1], edges[1:]):
             bins.append(Bin(variable, f"[{_fmt(lo)}, {_fmt(hi)}] {unit}", lo, hi))
+    if x.nut_accel_rad_s2 is not None:
+        bins += _accel_bins(x, settings)
+    lo, hi = float(np.min(x.nut_angle_rad)), float(np.max(x.nut_angle_rad))
+    if hi > lo:
+        edges = np.linspace(lo, hi, settings.stroke_bins + 1)
+        edges[-1] = np.nextafter(edges[-1], np.inf)
+        for a, b in zip(edges[:-1], edges[1:]):
+            bins.append(Bin("stroke", f"[{a / (2 * math.pi):.3g}, {b / (2 * math.pi):.3g}] "
+                            "rev", a, b))
     t0, t1 = float(np.min(x.t_s)), float(np.max(x.t_s))
     edges = np.linspace(t0, t1, settings.time_bins + 1)
     edges[-1] = np.nextafter(edges[-1], np.inf)
@@ -106,8 +223,34 @@ def make_bins(x, settings):
     return bins
 
 
-def bin_stats(b, x, residual_nm, noise_nm, settings):
-    """Return the statistics of ``residual_nm`` in bin ``b`` (a dict, JSON-ready)."""
+def _accel_bins(x, settings):
+    """Bins of accelerating (alpha > 0) and decelerating (alpha < 0) samples by |alpha|."""
+    a = x.nut_accel_rad_s2
+    finite = np.isfinite(a)
+    if not finite.any():
+        return []
+    floor = settings.accel_regime_fraction * float(np.percentile(np.abs(a[finite]), 99))
+    out = []
+    if floor <= 0:
+        return out
+    for sign, name in ((+1, "+"), (-1, "-")):
+        mag = np.abs(a[finite & (np.sign(a) == sign) & (np.abs(a) > floor)])
+        if mag.size == 0:
+            continue
+        edges = _quantile_edges(mag, settings.accel_bins)
+        for lo, hi in zip(edges[:-1], edges[1:]):
+            out.append(Bin("acceleration", f"{name}[{_fmt(lo)}, {_fmt(hi)}] rad/s^2",
+                           sign * lo if sign > 0 else -hi, sign * hi if sign > 0 else -lo))
+    return out
+
+
+def bin_stats(b, x, residual_nm, noise_nm, settings, tau=1.0):
+    """
+    Return the statistics of ``residual_nm`` in bin ``b`` (a dict, JSON-ready).
+
+    The standard error of a mean over n samples is noise sqrt(tau / n): correlated noise
+    (``tau`` > 1 samples) averages out more slowly than white noise.
+    """
     m = mask_of(b, x, settings.standstill_speed_rad_s) & np.isfinite(residual_nm)
     n = int(m.sum())
     row = {"variable": b.variable, "label": b.label, "n": n, "mean_residual_nm": None,
@@ -120,11 +263,11 @@ def bin_stats(b, x, residual_nm, noise_nm, settings):
     row["rms_residual_nm"] = float(np.sqrt(np.mean(r ** 2)))
     sign = np.sign(x.nut_velocity_rad_s[m])
     moving = np.abs(x.nut_velocity_rad_s[m]) > settings.standstill_speed_rad_s
-    se = noise_nm / math.sqrt(n) if noise_nm > 0 else math.nan
+    se = noise_nm * math.sqrt(tau / n) if noise_nm > 0 else math.nan
     row["z_mean"] = float(row["mean_residual_nm"] / se) if se > 0 else None
     if moving.any():
         row["mean_drag_excess_nm"] = float(np.mean(r[moving] * sign[moving]))
-        se_d = noise_nm / math.sqrt(int(moving.sum())) if noise_nm > 0 else math.nan
+        se_d = noise_nm * math.sqrt(tau / int(moving.sum())) if noise_nm > 0 else math.nan
         row["z_drag"] = float(row["mean_drag_excess_nm"] / se_d) if se_d > 0 else None
     row["significant"] = n >= settings.min_bin_samples and any(
         _is_significant(mean, z, noise_nm, settings)
@@ -140,6 +283,7 @@ def _is_significant(mean, z, noise_nm, settings):
         * noise_nm
 
 
-def regime_table(bins, x, residual_nm, noise_nm, settings):
+def regime_table(bins, x, residual_nm, noise_nm, settings, tau=1.0):
     """Return one stats row per bin."""
-    return [bin_stats(b, x, np.asarray(residual_nm, float), noise_nm, settings) for b in bins]
+    return [bin_stats(b, x, np.asarray(residual_nm, float), noise_nm, settings, tau)
+            for b in bins]

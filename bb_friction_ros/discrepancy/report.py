@@ -14,7 +14,11 @@ import numpy as np
 from bb_friction_ros.discrepancy.data import inputs_of
 from bb_friction_ros.empirical_terms import LIBRARY
 
+# Points per scatter panel: beyond a few thousand a scatter shows no more and costs seconds
+# per figure (a 25,000-sample recording); an even stride keeps every regime.
+MAX_SCATTER_POINTS = 4000
 FIGURES = ("residual_where.png", "heldout_before_after.png", "time_series.png")
+VALIDATION_FIGURE = "validation.png"
 
 
 def _f(v, digits=4):
@@ -63,19 +67,32 @@ def _trace_table(trace):
     return out
 
 
-def write_report(out, a, summary, plots=True):
+def write_report(out, a, summary, plots=True, validation=None):
     """Write ``report.md`` (and the PNGs unless ``plots`` is false) into ``out``."""
     info = summary.get("input", {})
     s = summary["samples"]
+    nm = summary.get("noise") or {}
+    acc = summary.get("acceleration", {})
     lines = [
         "# Discrepancy report", "",
-        f"**Verdict: {summary['verdict']}.** {summary['reason']}.", "",
+        f"**Verdict: {summary['verdict']}.** {summary['reason']}.", ""]
+    if summary.get("identified_from_data_only"):
+        lines += ["**No model of this screw:** the prediction is zero, so every term below "
+                  "was identified from the measured torque alone. It describes this drive "
+                  "as measured, not a deviation from the ball-screw model.", ""]
+    lines += [
         f"- input: `{info.get('input', '?')}` ({info.get('format', '?')}); prediction: "
         f"{info.get('prediction_source', '?')}",
         f"- samples: {s['usable']} usable ({s['fit']} fit, first part; {s['holdout']} held "
         f"out, last part); dropped: {s['dropped']}",
-        f"- noise level estimated from the residual (MAD of first differences): "
-        f"{_f(summary['noise_std_nm'])} N m",
+        f"- noise level estimated from the residual (MAD of lag-{nm.get('lag_samples', 1)} "
+        f"differences, read where the estimate stops growing with the lag): "
+        f"{_f(summary['noise_std_nm'])} N m (lag-1 estimate {_f(nm.get('std_lag1_nm'))} N m; "
+        f"autocorrelation time {_f(nm.get('autocorrelation_time_samples'), 3)} samples)",
+        f"- acceleration: {acc.get('source', '?')}"
+        + (f"; cut-off {_f(acc['cutoff_hz'], 3)} Hz, segments split at gaps > "
+           f"{_f(acc['max_gap_s'], 3)} s; the live node's causal filter lags by "
+           f"{_f(acc['live_lag_s'] * 1e3, 3)} ms" if "cutoff_hz" in acc else ""),
         f"- held-out RMSE: before {_f(summary['rmse_before_nm'])} N m, after "
         f"{_f(summary['rmse_after_nm'])} N m",
     ]
@@ -87,6 +104,13 @@ def write_report(out, a, summary, plots=True):
                      f"`bb-friction replay BAG --config {summary['augmented_config']}`)")
     lines += ["", "## Which effect", ""]
     lines += _effects_table(summary) if summary["effects"] else ["No term selected."]
+    for amb in summary.get("ambiguities", []):
+        lines += ["", f"**{'Evidence' if amb['separated'] else 'Ambiguous'}:** "
+                  f"{amb['statement']}."]
+    if summary.get("rejected_effects"):
+        lines += ["", "Selected on the fit part but not adopted (no better on the held-out "
+                  "part): " + ", ".join(f"`{e['name']}`" for e in summary["rejected_effects"])
+                  + "."]
     if a.untested:
         lines += ["", "Not tested on this recording:", ""]
         lines += [f"- `{k}`: {v}" for k, v in a.untested.items()]
@@ -99,9 +123,22 @@ def write_report(out, a, summary, plots=True):
     lines += ["", "### Still significant after adding the terms", ""]
     lines += _regime_rows(remaining) if remaining else ["None."]
     lines += ["", "## Held-out part, per regime", ""] + _holdout_table(a)
+    if validation is not None:
+        v = summary["validation"]
+        lines += ["", "## Validation on a second recording (no refit)", "",
+                  f"Input: `{v['input']}`, {v['n']} samples; the same terms and parameters; "
+                  "rows in `validation/prediction.csv`.", "",
+                  "| | RMSE [N m] | relative error ‖meas − pred‖ / ‖meas‖ |", "|---|---|---|",
+                  f"| model | {_f(v['rmse_before_nm'])} | {_f(v['relative_error_before'], 3)} |",
+                  f"| model + terms | {_f(v['rmse_after_nm'])} | "
+                  f"{_f(v['relative_error_after'], 3)} |"]
     if plots:
         plot_all(out, a)
-        lines += ["", "## Figures", ""] + [f"![{f}]({f})" for f in FIGURES]
+        figures = list(FIGURES)
+        if validation is not None:
+            plot_validation(out, validation)
+            figures.append(VALIDATION_FIGURE)
+        lines += ["", "## Figures", ""] + [f"![{f}]({f})" for f in figures]
     (out / "report.md").write_text("\n".join(lines) + "\n")
 
 
@@ -123,10 +160,15 @@ def _panels(fig_axes, x, residuals, labels, colors, bins=None, rows=None):
                  ("angle", np.degrees(np.mod(x.nut_angle_rad, 2 * math.pi)),
                   "nut angle within a revolution [deg]"),
                  ("load", x.axial_load_n, "axial load [N]"),
-                 ("time", x.t_s, "time [s]"))
+                 ("time", x.t_s, "time [s]"),
+                 ("acceleration", x.nut_accel_rad_s2 if x.nut_accel_rad_s2 is not None
+                  else np.zeros_like(x.t_s), "nut acceleration [rad/s^2]"),
+                 ("stroke", x.nut_angle_rad / (2 * math.pi), "nut travel [rev]"))
+    pick = np.unique(np.linspace(0, x.t_s.size - 1, min(x.t_s.size, MAX_SCATTER_POINTS))
+                     .astype(int))
     for ax, (var, values, label) in zip(fig_axes, variables):
         for r, lab, col in zip(residuals, labels, colors):
-            ax.plot(values, r, ".", ms=2, color=col, alpha=0.5, label=lab)
+            ax.plot(values[pick], r[pick], ".", ms=2, color=col, alpha=0.5, label=lab)
         if bins is not None:
             _bin_means(ax, var, bins, rows)
         ax.axhline(0.0, color="k", lw=0.6)
@@ -145,31 +187,39 @@ def _bin_means(ax, var, bins, rows):
             lo, hi = (lo, hi) if b.direction > 0 else (-hi, -lo)
         if var == "angle":
             lo, hi = math.degrees(lo), math.degrees(hi)
+        if var == "stroke":
+            lo, hi = lo / (2 * math.pi), hi / (2 * math.pi)
         value = row["mean_residual_nm"]
         ax.plot([lo, hi], [value, value], lw=2.5,
                 color="C3" if row["significant"] else "k")
+
+
+def _layout(fig):
+    # fixed margins: tight_layout measures every label and takes seconds on a loaded machine
+    fig.subplots_adjust(left=0.07, right=0.98, bottom=0.08, top=0.92, wspace=0.28,
+                        hspace=0.32)
 
 
 def plot_all(out, a):
     """Write the three figures of the report."""
     from matplotlib.figure import Figure
     x = inputs_of(a.recording)
-    fig = Figure(figsize=(11, 7))
-    axes = fig.subplots(2, 2)
+    fig = Figure(figsize=(15, 7))
+    axes = fig.subplots(2, 3)
     _panels(axes.ravel(), x, [a.residual_nm], ["residual (measured - predicted)"], ["0.5"],
             a.bins, a.regions_before)
     fig.suptitle("Where: residual before (bars: regime means, red = significant)")
-    fig.tight_layout()
+    _layout(fig)
     fig.savefig(out / FIGURES[0], dpi=100)
 
     hold = ~a.fit_mask
     xh = inputs_of(a.recording, hold)
-    fig = Figure(figsize=(11, 7))
-    axes = fig.subplots(2, 2)
+    fig = Figure(figsize=(15, 7))
+    axes = fig.subplots(2, 3)
     _panels(axes.ravel(), xh, [a.residual_nm[hold], (a.residual_nm - a.added_nm)[hold]],
             ["before", "after (with the selected terms)"], ["0.6", "C0"])
     fig.suptitle(f"Held-out part: RMSE {a.rmse_before_nm:.4g} -> {a.rmse_after_nm:.4g} N m")
-    fig.tight_layout()
+    _layout(fig)
     fig.savefig(out / FIGURES[1], dpi=100)
 
     rec = a.recording
@@ -190,5 +240,32 @@ def plot_all(out, a):
         ax.grid(True)
         ax.legend(fontsize=8, loc="upper right")
     axes[0].set_title("fit part | held-out part (right of the dashed line)")
-    fig.tight_layout()
+    _layout(fig)
     fig.savefig(out / FIGURES[2], dpi=100)
+
+
+def plot_validation(out, v):
+    """Write ``validation.png``: measured, model and model + terms on the second recording."""
+    from matplotlib.figure import Figure
+    rec = v.recording
+    t = rec.t_s - rec.t_s[0]
+    fig = Figure(figsize=(11, 7))
+    axes = fig.subplots(2, 1, sharex=True)
+    axes[0].plot(t, rec.torque_meas_nm, lw=0.6, color="0.5", label="measured")
+    axes[0].plot(t, rec.torque_pred_nm, lw=0.9, label="model")
+    axes[0].plot(t, rec.torque_pred_nm + v.added_nm, lw=0.9, label="model + terms (no refit)")
+    axes[0].set_ylabel("torque [N m]")
+    axes[1].plot(t, rec.torque_meas_nm - rec.torque_pred_nm, lw=0.6, color="0.5",
+                 label="residual before")
+    axes[1].plot(t, rec.torque_meas_nm - rec.torque_pred_nm - v.added_nm, lw=0.6, color="C0",
+                 label="residual after")
+    axes[1].set_ylabel("residual [N m]")
+    axes[1].set_xlabel("time [s]")
+    s = v.summary
+    axes[0].set_title(f"validation: RMSE {s['rmse_before_nm']:.4g} -> {s['rmse_after_nm']:.4g} "
+                      "N m")
+    for ax in axes:
+        ax.grid(True)
+        ax.legend(fontsize=8, loc="upper right")
+    _layout(fig)
+    fig.savefig(out / VALIDATION_FIGURE, dpi=100)

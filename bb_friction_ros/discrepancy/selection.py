@@ -6,10 +6,12 @@ candidate terms.  Each term is linear in its amplitudes; a nonlinear parameter (
 velocity, thermal time constant) is profiled over a log grid, then refined by a bounded 1-D
 search.
 
-With six terms and at most ``max_terms`` (3) of them, every subset is fitted (41 subsets, a
-fraction of a second), so no greedy path can trap the answer.  For each size m the subset of
-lowest BIC = n ln(RSS/n) + k ln n (k = amplitudes + profiled parameters) is kept, provided
-its amplitudes have their physical sign (a viscous, seal or Stribeck drag is >= 0).  The size
+Every subset of at most ``max_terms`` (5) of the library's terms is fitted, so no greedy path
+can trap the answer; ``Gram`` makes each fit a few small solves, independent of the number of
+samples.  For each size m the subset of lowest BIC = n' ln(RSS/n) + k ln n' (k = amplitudes
++ profiled parameters; n' = n / tau, the effective samples of correlated noise) is kept,
+provided its amplitudes have their physical sign (a viscous, seal or Stribeck drag is >= 0)
+and lie in their validated range.  The size
 chosen minimises BIC + ``bic_threshold`` m: every term must bring strong evidence, not just
 any improvement.  A larger model must also lower the RMSE of a blocked K-fold
 cross-validation (contiguous time blocks) against the next smaller choice, or the smaller one
@@ -23,11 +25,15 @@ import math
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from bb_friction_ros.empirical_terms import LIBRARY, make_term, TermSet
+from bb_friction_ros.empirical_terms import (AMBIGUOUS_PAIRS, Inputs, LIBRARY, make_term,
+                                             TermSet)
 
 # Tolerance of the 1-D refinement of a nonlinear parameter, in ln units: 1e-3 is 0.1 %,
 # far below what a noisy recording can resolve.
 REFINE_LOG_TOLERANCE = 1e-3
+# Subsets per size whose nonlinear values are refined beyond the grid: the grid already ranks
+# them; refining every subset would cost a bounded search each.
+REFINED_PER_SIZE = 3
 
 
 @dataclasses.dataclass(frozen=True)
@@ -37,6 +43,7 @@ class Candidate:
     name: str
     linear: tuple
     grid: tuple = (None,)
+    fixed: tuple = ()         # ((param, value), ...) set from the data, not fitted
 
     @property
     def kind(self):
@@ -50,18 +57,24 @@ class Candidate:
 
     def columns(self, x, nl):
         """Return the design columns at inputs ``x`` for nonlinear value ``nl``."""
-        return self.kind.columns(x, nl, self.linear)
+        return self.kind.design(x, nl, self.linear, dict(self.fixed))
 
 
 def _log_grid(lo, hi, n):
     return tuple(float(v) for v in np.geomspace(lo, hi, n))
 
 
-def candidates(x, settings, skip=()):
-    """Return the candidates for fit inputs ``x``; names in ``skip`` are left out."""
+def candidates(x, settings, skip=(), fixed=None):
+    """
+    Return the candidates for fit inputs ``x``; names in ``skip`` are left out.
+
+    ``fixed`` maps a term name to the params set from the data (the inertia term's filter):
+    {name: {param: value}}.
+    """
     speed = np.abs(x.nut_velocity_rad_s)
     moving = speed[speed > settings.standstill_speed_rad_s]
     span = float(np.max(x.t_s) - np.min(x.t_s))
+    fixed = fixed or {}
     out = []
     for name in LIBRARY:
         if name in skip:
@@ -70,6 +83,21 @@ def candidates(x, settings, skip=()):
             linear = tuple(f"{k}{h}_m" for h in range(1, settings.lead_error_harmonics + 1)
                            for k in ("sin", "cos"))
             out.append(Candidate(name, linear))
+        elif name == "angle_ripple":
+            linear = tuple(f"{k}{h}_nm" for h in range(1, settings.angle_ripple_harmonics + 1)
+                           for k in ("sin", "cos"))
+            out.append(Candidate(name, linear))
+        elif name == "stroke_position":
+            lo, hi = float(np.min(x.nut_angle_rad)), float(np.max(x.nut_angle_rad))
+            linear = tuple(f"p{k}_nm" for k in range(1, settings.stroke_order + 1))
+            half_range = max(0.5 * (hi - lo), 1e-9)
+            out.append(Candidate(name, linear, fixed=(
+                ("center_rad", 0.5 * (lo + hi)), ("half_range_rad", half_range))))
+        elif name == "inertia":
+            if x.nut_accel_rad_s2 is None or name not in fixed:
+                continue
+            out.append(Candidate(name, LIBRARY[name].linear,
+                                 fixed=tuple(sorted(fixed[name].items()))))
         elif name == "stribeck":
             lo = float(np.percentile(moving, 5))
             hi = settings.stribeck_max_speed_fraction * float(np.percentile(moving, 90))
@@ -115,9 +143,16 @@ def _design(members, x, cache=None):
     return np.hstack(cols) if cols else np.zeros((n, 0))
 
 
-def _bic(rss, n, k):
-    # floor: an exact fit (noise-free synthetic data) must not give log(0)
-    return n * math.log(max(rss, 1e-300) / n) + k * math.log(n)
+def _bic(rss, n, k, tau=1.0):
+    """
+    BIC of a least-squares fit with noise of integrated autocorrelation time ``tau``.
+
+    Correlated noise carries n / tau independent samples' worth of evidence (the
+    log-likelihood scales with it), so an AR-coloured residual does not inflate the evidence.
+    The floor keeps an exact fit (noise-free synthetic data) away from log(0).
+    """
+    n_eff = n / max(tau, 1.0)
+    return n_eff * math.log(max(rss, 1e-300) / n) + k * math.log(n_eff)
 
 
 def _in_range(cls, name, value):
@@ -131,6 +166,8 @@ def _is_physical(members, coef):
     i = 0
     for c, _ in members:
         for name in c.linear:
+            if not math.isfinite(coef[i]):
+                return False
             if name in c.kind.nonnegative and coef[i] < 0.0:
                 return False
             if not _in_range(c.kind.params_cls, name, coef[i]):
@@ -139,7 +176,147 @@ def _is_physical(members, coef):
     return True
 
 
-def fit(members, x, r, cache=None):
+def _solve(g, b):
+    """Least squares from the normal equations, columns scaled to unit norm first."""
+    d = np.sqrt(np.diag(g))
+    d[d == 0.0] = 1.0
+    coef, *_ = np.linalg.lstsq(g / np.outer(d, d), b / d, rcond=1e-10)
+    return coef / d
+
+
+class Gram:
+    """
+    Cross-products of every candidate column and the residual, per cross-validation block.
+
+    They are accumulated over row chunks, for each grid value of a nonlinear parameter.
+
+    Every subset's least-squares fit and blocked cross-validation then costs a few small
+    solves, independent of the number of samples; the columns are never all in memory at
+    once (a 10-minute 1 kHz recording).
+    """
+
+    # Rows per chunk: the chunk's design (every candidate column at every grid value, ~60)
+    # is the largest array of the selection; 16384 rows keep it near 8 MB, and the products
+    # are as fast as with larger chunks.
+    CHUNK_ROWS = 16384
+
+    def __init__(self, cands, x, r, folds):
+        self.keys = [(c, nl) for c in cands for nl in c.grid]
+        self.slices = {}
+        p = 0
+        for c, nl in self.keys:
+            self.slices[(c.name, nl)] = slice(p, p + len(c.linear))
+            p += len(c.linear)
+        n = r.size
+        self.n = n
+        self.edges = np.linspace(0, n, folds + 1).astype(int)
+        self.g = np.zeros((folds, p, p))
+        self.b = np.zeros((folds, p))
+        self.rr = np.zeros(folds)
+        for f, (lo, hi) in enumerate(zip(self.edges[:-1], self.edges[1:])):
+            for c0 in range(lo, hi, self.CHUNK_ROWS):
+                c1 = min(c0 + self.CHUNK_ROWS, hi)
+                xs = _rows(x, slice(c0, c1))
+                a = np.hstack([c.columns(xs, nl) for c, nl in self.keys]) if p else \
+                    np.zeros((c1 - c0, 0))
+                rs = r[c0:c1]
+                self.g[f] += a.T @ a
+                self.b[f] += a.T @ rs
+                self.rr[f] += float(rs @ rs)
+        self.g_all = self.g.sum(axis=0)
+        self.b_all = self.b.sum(axis=0)
+        self.rr_all = float(self.rr.sum())
+        # per candidate: (grid points, amplitudes) column indices; per column: its bounds
+        self.grid_cols = {}
+        lo, hi = np.full(p, -np.inf), np.full(p, np.inf)
+        for c in cands:
+            self.grid_cols[c.name] = np.array([np.arange(self.slices[(c.name, nl)].start,
+                                                         self.slices[(c.name, nl)].stop)
+                                               for nl in c.grid])
+            meta = {f.name: f.metadata for f in dataclasses.fields(c.kind.params_cls)}
+            for nl in c.grid:
+                for j, name in zip(range(self.slices[(c.name, nl)].start,
+                                         self.slices[(c.name, nl)].stop), c.linear):
+                    m = meta[name]
+                    lo[j] = m["lo"] if m["lo"] is not None else -np.inf
+                    hi[j] = m["hi"] if m["hi"] is not None else np.inf
+                    if name in c.kind.nonnegative:
+                        lo[j] = max(lo[j], 0.0)
+        self.col_lo, self.col_hi = lo, hi
+
+    def best_over_grids(self, subset, tau):
+        """
+        Return the best physical Fit of ``subset`` over the product of its grids, or None.
+
+        All grid combinations are solved at once (batched normal equations, pseudo-inverse:
+        collinear columns such as offset and coulomb_asymmetry without standstill samples
+        get the minimum-norm split instead of an error).
+        """
+        shapes = [len(c.grid) for c in subset]
+        choice = np.stack(np.meshgrid(*[np.arange(n) for n in shapes], indexing="ij"),
+                          axis=-1).reshape(-1, len(subset))
+        idx = np.concatenate([self.grid_cols[c.name][choice[:, i]]
+                              for i, c in enumerate(subset)], axis=1)        # (B, k)
+        g = self.g_all[idx[:, :, None], idx[:, None, :]]
+        b = self.b_all[idx]
+        d = np.sqrt(np.einsum("bii->bi", g))
+        d[d == 0.0] = 1.0
+        gs = g / (d[:, :, None] * d[:, None, :])
+        coef = np.einsum("bij,bj->bi", np.linalg.pinv(gs, rcond=1e-10), b / d) / d
+        rss = self.rr_all - 2.0 * np.einsum("bi,bi->b", coef, b) + \
+            np.einsum("bi,bij,bj->b", coef, g, coef)
+        rss = np.maximum(rss, 0.0)
+        ok = np.all((coef >= self.col_lo[idx]) & (coef <= self.col_hi[idx]), axis=1) & \
+            np.all(np.isfinite(coef), axis=1)
+        if not ok.any():
+            return None
+        k = sum(c.n_params for c in subset)
+        n_eff = self.n / max(tau, 1.0)
+        bic = n_eff * np.log(np.maximum(rss, 1e-300) / self.n) + k * math.log(n_eff)
+        bic = np.where(ok, bic, np.inf)
+        j = int(np.argmin(bic))
+        members = tuple((c, c.grid[choice[j, i]]) for i, c in enumerate(subset))
+        return Fit(members, coef[j], float(rss[j]), float(bic[j]), True)
+
+    def index(self, members):
+        """Return the column indices of ``members``."""
+        idx = [np.arange(self.slices[(c.name, nl)].start, self.slices[(c.name, nl)].stop)
+               for c, nl in members]
+        return np.concatenate(idx) if idx else np.zeros(0, dtype=int)
+
+    def fit(self, members, tau):
+        """Return the Fit of ``members`` on all rows."""
+        i = self.index(members)
+        if i.size == 0:
+            return Fit(tuple(members), np.zeros(0), self.rr_all,
+                       _bic(self.rr_all, self.n, 0, tau), True)
+        g, b = self.g_all[np.ix_(i, i)], self.b_all[i]
+        coef = _solve(g, b)
+        rss = max(self.rr_all - 2.0 * coef @ b + coef @ g @ coef, 0.0)
+        k = sum(c.n_params for c, _ in members)
+        return Fit(tuple(members), coef, rss, _bic(rss, self.n, k, tau),
+                   _is_physical(members, coef))
+
+    def cv_rmse(self, members):
+        """Return the RMSE of the blocked cross-validation of ``members``."""
+        i = self.index(members)
+        if i.size == 0:
+            return math.sqrt(self.rr_all / self.n)
+        sq = 0.0
+        for f in range(len(self.rr)):
+            g_f, b_f = self.g[f][np.ix_(i, i)], self.b[f][i]
+            coef = _solve(self.g_all[np.ix_(i, i)] - g_f, self.b_all[i] - b_f)
+            sq += max(self.rr[f] - 2.0 * coef @ b_f + coef @ g_f @ coef, 0.0)
+        return math.sqrt(sq / self.n)
+
+
+def _rows(x, sl):
+    return Inputs(*(None if v is None else v[sl] for v in
+                    (x.t_s, x.nut_angle_rad, x.nut_velocity_rad_s, x.axial_load_n,
+                     x.nut_accel_rad_s2)))
+
+
+def fit(members, x, r, cache=None, tau=1.0):
     """
     Least-squares fit of residual ``r`` on the model ``members``; return a Fit.
 
@@ -157,7 +334,119 @@ def fit(members, x, r, cache=None):
         res = r - a @ coef
         rss = float(res @ res)
     k = sum(c.n_params for c, _ in members)
-    return Fit(members, coef, rss, _bic(rss, n, k), _is_physical(members, coef))
+    return Fit(members, coef, rss, _bic(rss, n, k, tau), _is_physical(members, coef))
+
+
+def refine(f, x, r, cache=None, tau=1.0):
+    """
+    Re-profile each nonlinear value over its whole grid, then refine it by a bounded search.
+
+    One pass, in model order, the others held.  The whole grid, not just the neighbourhood:
+    a term that entered first may have stood in for a later one at another value.
+    """
+    members = list(f.members)
+    cache = {} if cache is None else cache
+    for i, (cand, nl) in enumerate(members):
+        if nl is None:
+            continue
+
+        def cost(log_nl, i=i, cand=cand):
+            value = float(math.exp(log_nl))
+            fresh = (cand.name, value) not in cache
+            trial = members[:i] + [(cand, value)] + members[i + 1:]
+            g = fit(trial, x, r, cache, tau)
+            if fresh:
+                # a trial value's column is used once: cached, the search would hold one
+                # column per evaluation (~90 MB on a 10-minute 1 kHz recording)
+                cache.pop((cand.name, value), None)
+            # a finite penalty (worse than no model at all) keeps the search arithmetic sane
+            return g.rss if g.physical else 2.0 * float(r @ r)
+
+        grid = np.log(np.array(cand.grid))
+        costs = [cost(v) for v in grid]
+        k = int(np.argmin(costs))
+        lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)]
+        best_log, best_cost = grid[k], costs[k]
+        if hi > lo:
+            res = minimize_scalar(cost, bounds=(lo, hi), method="bounded",
+                                  options={"xatol": REFINE_LOG_TOLERANCE})
+            if res.fun < best_cost:
+                best_log, best_cost = res.x, res.fun
+        if best_cost < cost(math.log(nl)):
+            members[i] = (cand, float(math.exp(best_log)))
+    return fit(members, x, r, cache, tau)
+
+
+def best_grid_fit(subset, gram, tau):
+    """Return the best physical Fit of the terms ``subset`` over the grids, or None."""
+    best = None
+    for nls in itertools.product(*(c.grid for c in subset)):
+        f = gram.fit(tuple(zip(subset, nls)), tau)
+        if f.physical and (best is None or f.bic < best.bic):
+            best = f
+    return best
+
+
+def select(x, r, settings, skip=(), fixed=None, tau=1.0):
+    """
+    Select terms explaining residual ``r`` at fit inputs ``x`` (an empirical_terms.Inputs).
+
+    Best-subset selection: for each size m <= max_terms the subset of lowest BIC (its
+    nonlinear values from the grid; the best ``REFINED_PER_SIZE`` per size then refined);
+    the size chosen minimises BIC + bic_threshold * m (every term must earn strong
+    evidence), and a larger model must also beat the next smaller choice in blocked
+    cross-validation.  ``tau`` is the noise's integrated autocorrelation time in samples
+    (regimes.noise_model).  Return (TermSet, trace, Gram); the trace has one row per size.
+    """
+    cands = candidates(x, settings, skip, fixed)
+    gram = Gram(cands, x, r, settings.cv_folds)
+    best = {0: gram.fit((), tau)}
+    cache = {}
+    for m in range(1, min(settings.max_terms, len(cands)) + 1):
+        ranked = []
+        for subset in itertools.combinations(cands, m):
+            f = gram.best_over_grids(subset, tau)
+            if f is not None:
+                ranked.append(f)
+        ranked.sort(key=lambda f: f.bic)
+        for f in ranked[:REFINED_PER_SIZE]:
+            if any(nl is not None for _, nl in f.members):
+                g = refine(f, x, r, cache, tau)
+                f = g if g.physical and g.rss <= f.rss else f
+            if m not in best or f.bic < best[m].bic:
+                best[m] = f
+    score = {m: f.bic + settings.bic_threshold * m for m, f in best.items()}
+    cv = {}
+
+    def cv_of(m):
+        if m not in cv:
+            if any(nl is not None and (c.name, nl) not in gram.slices
+                   for c, nl in best[m].members):
+                cv[m] = cv_rmse(best[m].members, x, r, settings.cv_folds)
+            else:
+                cv[m] = gram.cv_rmse(best[m].members)
+        return cv[m]
+
+    chosen = min(score, key=score.get)
+    while chosen > 0:
+        smaller = min((m for m in score if m < chosen), key=score.get)
+        if cv_of(chosen) < cv_of(smaller):
+            break
+        chosen = smaller      # not confirmed out of sample: fall back to the smaller model
+    trace = [{"size": m, "terms": list(f.names), "bic": f.bic, "penalised_bic": score[m],
+              "cv_rmse_nm": cv.get(m), "rss_nm2": f.rss, "chosen": m == chosen}
+             for m, f in sorted(best.items())]
+    return to_termset(best[chosen]), trace, SelectionContext(gram, best, chosen, tau)
+
+
+@dataclasses.dataclass
+class SelectionContext:
+    """What the ambiguity check needs after the selection."""
+
+    gram: Gram
+    best: dict
+    chosen: int
+    tau: float
 
 
 def cv_rmse(members, x, r, folds):
@@ -177,92 +466,43 @@ def cv_rmse(members, x, r, folds):
     return math.sqrt(sq / n)
 
 
-def refine(f, x, r, cache=None):
+def ambiguities(ctx, x, r, settings):
     """
-    Re-profile each nonlinear value over its whole grid, then refine it by a bounded search.
+    Name the pairs of chosen terms whose columns the data cannot separate (AMBIGUOUS_PAIRS).
 
-    One pass, in model order, the others held.  The whole grid, not just the neighbourhood:
-    a term that entered first may have stood in for a later one at another value.
+    offset and coulomb_asymmetry are one column on moving samples; only standstill samples
+    separate them.  The chosen member is swapped for its partner and refitted: when the BIC
+    changes by less than ``bic_threshold`` the data cannot tell them apart and the pair is
+    reported as one ambiguous effect; otherwise the evidence (standstill samples, BIC
+    difference) is reported with the choice.  Return a list of dicts (summary.json).
     """
-    members = list(f.members)
-    for i, (cand, nl) in enumerate(members):
-        if nl is None:
+    f = ctx.best[ctx.chosen]
+    names = f.names
+    out = []
+    for a, b in AMBIGUOUS_PAIRS:
+        if (a in names) == (b in names):
             continue
-
-        def cost(log_nl, i=i, cand=cand):
-            trial = members[:i] + [(cand, float(math.exp(log_nl)))] + members[i + 1:]
-            g = fit(trial, x, r, cache)
-            # a finite penalty (worse than no model at all) keeps the search arithmetic sane
-            return g.rss if g.physical else 2.0 * float(r @ r)
-
-        grid = np.log(np.array(cand.grid))
-        costs = [cost(v) for v in grid]
-        k = int(np.argmin(costs))
-        lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)]
-        best_log, best_cost = grid[k], costs[k]
-        if hi > lo:
-            res = minimize_scalar(cost, bounds=(lo, hi), method="bounded",
-                                  options={"xatol": REFINE_LOG_TOLERANCE})
-            if res.fun < best_cost:
-                best_log, best_cost = res.x, res.fun
-        if best_cost < cost(math.log(nl)):
-            members[i] = (cand, float(math.exp(best_log)))
-    return fit(members, x, r, cache)
-
-
-def best_fit(subset, x, r, cache=None):
-    """
-    Return the best physical Fit of the terms ``subset``, or None if none is physical.
-
-    The nonlinear values are profiled jointly over the product of their grids (at most two
-    terms carry one), then refined (``refine``).
-    """
-    best = None
-    for nls in itertools.product(*(c.grid for c in subset)):
-        f = fit(tuple(zip(subset, nls)), x, r, cache)
-        if f.physical and (best is None or f.bic < best.bic):
-            best = f
-    if best is None or all(nl is None for _, nl in best.members):
-        return best
-    refined = refine(best, x, r)      # no cache: the refined values are used once
-    return refined if refined.physical and refined.rss <= best.rss else best
-
-
-def select(x, r, settings, skip=()):
-    """
-    Select terms explaining residual ``r`` at fit inputs ``x`` (an empirical_terms.Inputs).
-
-    Best-subset selection: for each size m <= max_terms the subset of lowest BIC; the size
-    chosen minimises BIC + bic_threshold * m (every term must earn strong evidence), and a
-    larger model must also beat the next smaller choice in blocked cross-validation.
-    Return (TermSet, trace): the trace has one row per size for the report.
-    """
-    cands = candidates(x, settings, skip)
-    best = {0: fit((), x, r)}
-    cache = {}
-    for m in range(1, min(settings.max_terms, len(cands)) + 1):
-        for subset in itertools.combinations(cands, m):
-            f = best_fit(subset, x, r, cache)
-            if f is not None and (m not in best or f.bic < best[m].bic):
-                best[m] = f
-    score = {m: f.bic + settings.bic_threshold * m for m, f in best.items()}
-    cv = {}
-
-    def cv_of(m):
-        if m not in cv:
-            cv[m] = cv_rmse(best[m].members, x, r, settings.cv_folds)
-        return cv[m]
-
-    chosen = min(score, key=score.get)
-    while chosen > 0:
-        smaller = min((m for m in score if m < chosen), key=score.get)
-        if cv_of(chosen) < cv_of(smaller):
-            break
-        chosen = smaller      # not confirmed out of sample: fall back to the smaller model
-    trace = [{"size": m, "terms": list(f.names), "bic": f.bic, "penalised_bic": score[m],
-              "cv_rmse_nm": cv.get(m), "rss_nm2": f.rss, "chosen": m == chosen}
-             for m, f in sorted(best.items())]
-    return to_termset(best[chosen]), trace
+        chosen, other = (a, b) if a in names else (b, a)
+        cands = {c.name: c for c in candidates(x, settings)}
+        members = tuple((cands[other], None) if c.name == chosen else (c, nl)
+                        for c, nl in f.members)
+        g = fit(members, x, r, None, ctx.tau)
+        standstill = int(np.sum(np.abs(x.nut_velocity_rad_s)
+                                <= settings.standstill_speed_rad_s))
+        delta = (g.bic - f.bic) if g.physical else math.inf
+        separated = delta >= settings.bic_threshold
+        if separated:
+            text = (f"{chosen} rather than {other}: the {standstill} standstill samples of "
+                    f"the fit part decide it (BIC {delta:.1f} worse with {other})")
+        else:
+            text = (f"{chosen} and {other} are one ambiguous effect here: on moving samples "
+                    f"they are the same constant, and the {standstill} standstill samples "
+                    f"do not separate them (BIC difference {delta:.1f} < "
+                    f"{settings.bic_threshold}); {chosen} was kept")
+        out.append({"pair": [a, b], "chosen": chosen, "standstill_samples": standstill,
+                    "bic_difference": delta if math.isfinite(delta) else None,
+                    "separated": bool(separated), "statement": text})
+    return out
 
 
 def to_termset(f):
@@ -270,7 +510,7 @@ def to_termset(f):
     terms = []
     i = 0
     for cand, nl in f.members:
-        values = {}
+        values = dict(cand.fixed)
         for name in cand.linear:
             values[name] = float(f.coef[i])
             i += 1

@@ -8,7 +8,8 @@ out-of-range value is refused with the dotted key, like every other config of th
 import dataclasses
 
 from bb_friction_ros.config import field, from_mapping, load_section
-from bb_friction_ros.empirical_terms import MAX_LEAD_HARMONICS
+from bb_friction_ros.empirical_terms import (MAX_LEAD_HARMONICS, MAX_RIPPLE_HARMONICS,
+                                             MAX_STROKE_ORDER)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -47,9 +48,44 @@ class DiscrepancySettings:
     cv_folds: int = field(
         5, "1", "contiguous time blocks of the fit part for cross-validation: a term must "
         "also lower the cross-validated RMSE", lo=2, hi=50)
-    max_terms: int = field(3, "1", "most terms selected", lo=1, hi=6)
+    max_terms: int = field(
+        5, "1", "most terms selected: a recording without a model of its screw needs drag, "
+        "its viscous part, a direction asymmetry, the inertia and Stribeck at once", lo=1,
+        hi=8)
     lead_error_harmonics: int = field(
         2, "1", "harmonics per revolution fitted by lead_error", lo=1, hi=MAX_LEAD_HARMONICS)
+    angle_ripple_harmonics: int = field(
+        2, "1", "harmonics per revolution fitted by angle_ripple", lo=1,
+        hi=MAX_RIPPLE_HARMONICS)
+    stroke_order: int = field(
+        2, "1", "order of the Legendre polynomial of stroke_position (1: a linear change "
+        "along the stroke)", lo=1, hi=MAX_STROKE_ORDER)
+    min_stroke_revolutions: float = field(
+        2.0, "rev", "nut travel (P95 - P5 of the cumulative angle) needed in the fit part to "
+        "test stroke_position: over less, a change along the stroke is a change in time",
+        lo=0.0)
+    # --- acceleration ---------------------------------------------------------------------
+    accel_cutoff_hz: float = field(
+        10.0, "Hz", "cut-off of the 2nd-order Butterworth low-pass of the nut velocity whose "
+        "derivative is the acceleration (the inertia term); the causal version lags by "
+        "sqrt(2)/(2 pi fc), 22 ms at 10 Hz", lo=0.0, lo_open=True)
+    accel_max_cutoff_fraction: float = field(
+        0.2, "1", "the cut-off is at most this fraction of the sample rate (a slow recorder: "
+        "the filter must stay well below Nyquist)", lo=0.01, hi=0.45)
+    segment_gap_factor: float = field(
+        5.0, "1", "a step longer than this many median sample periods starts a new "
+        "continuous segment: the acceleration filter never runs across it", lo=1.5)
+    accel_min_segment_samples: int = field(
+        5, "1", "samples a continuous segment needs for an acceleration to be derived on it",
+        lo=3)
+    # --- noise ------------------------------------------------------------------------------
+    noise_max_lag: int = field(
+        64, "samples", "longest lag of the differences that estimate the noise: the noise "
+        "of a filtered (smooth) signal decorrelates within it", lo=1, hi=10 ** 6)
+    noise_plateau_ratio: float = field(
+        1.1, "1", "the noise std is read at the first lag where doubling the lag raises the "
+        "difference-based estimate by less than this ratio (the noise has decorrelated)",
+        lo=1.0)
     nonlinear_grid_points: int = field(
         12, "1", "grid points when profiling a nonlinear parameter (Stribeck velocity, "
         "thermal time constant) before a bounded 1-D refinement", lo=3, hi=200)
@@ -67,6 +103,14 @@ class DiscrepancySettings:
     angle_bins: int = field(8, "1", "bins of the nut angle within a revolution", lo=2, hi=72)
     load_bins: int = field(4, "1", "quantile bins of the axial load", lo=1, hi=20)
     time_bins: int = field(5, "1", "equal bins of time", lo=1, hi=50)
+    accel_bins: int = field(2, "1", "quantile bins of |acceleration| per sign (accelerating, "
+                            "decelerating) among the samples above accel_regime_fraction",
+                            lo=1, hi=20)
+    accel_regime_fraction: float = field(
+        0.1, "1", "samples whose |acceleration| exceeds this fraction of its 99th percentile "
+        "form the acceleration regimes", lo=0.0, hi=1.0)
+    stroke_bins: int = field(5, "1", "equal bins of the nut's travel (cumulative angle)",
+                             lo=1, hi=50)
     min_bin_samples: int = field(10, "1", "samples needed for a bin to be judged", lo=2)
     flag_z: float = field(
         4.0, "1", "a bin's mean residual is significant when it exceeds flag_z noise "

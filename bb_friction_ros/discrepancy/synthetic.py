@@ -37,8 +37,16 @@ EFFECT_RANGES = {
     "load_dependent": {"k_nm_per_n": (1.5e-5, 4e-5)},              # signed: mu off 9-25 %
     "lead_error": {"sin1_m": (4e-6, 10e-6)},                         # ISO 3408 v_2pi, C5-C7
     "thermal_drift": {"delta_torque_nm": (0.02, 0.06), "time_constant_s": (3.0, 30.0)},
+    # J alpha peaks at 2-8 % of the friction torque with the filtered alpha of the trajectory
+    "inertia": {"j_kg_m2": (1e-4, 4e-4)},
+    "offset": {"torque_nm": (0.01, 0.04)},                           # signed
+    "coulomb_asymmetry": {"delta_torque_nm": (0.02, 0.08)},          # signed: +/-Delta/2
+    "viscous_asymmetry": {"delta_c_nm_s_per_rad": (1.5e-3, 5e-3)},   # signed
+    "angle_ripple": {"sin1_nm": (0.006, 0.02)},                      # random phase
 }
-SIGNED = {"k_nm_per_n", "delta_torque_nm"}
+# stroke_position is not drawn: the reference trajectory travels ~1 rev, too little to tell a
+# change along the stroke from one in time (tested on its own trajectory instead).
+SIGNED = {"k_nm_per_n", "delta_torque_nm", "delta_c_nm_s_per_rad"}
 NOISE_RANGE_NM = (0.002, 0.008)
 # Second harmonic of the lead error, as a fraction of the first.
 LEAD_SECOND_HARMONIC_MAX = 0.5
@@ -87,8 +95,8 @@ def baseline(cfg, config_path=None, model_rate_hz=100.0, cache_dir=None):
     def predict(events):
         if "pred" not in stored:
             preds, _ = predict_events(events, config_path, settings)
-            stored.update(pred=np.array([p.torque_total_nm for p in preds]),
-                          converged=np.array([p.converged for p in preds]))
+            stored.update(pred=preds.column("torque_total_nm").copy(),
+                          converged=np.frombuffer(preds.converged, np.int8).astype(bool))
             if cache is not None:
                 cache.parent.mkdir(parents=True, exist_ok=True)
                 tmp = cache.with_suffix(".tmp.npz")
@@ -123,22 +131,42 @@ def draw_effect(name, rng):
     values = {}
     for key, (lo, hi) in EFFECT_RANGES[name].items():
         v = float(rng.uniform(lo, hi))
-        values[key] = v * rng.choice((-1.0, 1.0)) if key in SIGNED else v
+        signed = key in SIGNED or (name == "offset")
+        values[key] = v * rng.choice((-1.0, 1.0)) if signed else v
     if name == "lead_error":                  # random phase and a second harmonic
         amp, phase = values.pop("sin1_m"), float(rng.uniform(0.0, 2.0 * math.pi))
         values.update(sin1_m=amp * math.cos(phase), cos1_m=amp * math.sin(phase))
         amp2 = amp * float(rng.uniform(0.0, LEAD_SECOND_HARMONIC_MAX))
         phase2 = float(rng.uniform(0.0, 2.0 * math.pi))
         values.update(sin2_m=amp2 * math.cos(phase2), cos2_m=amp2 * math.sin(phase2))
+    if name == "angle_ripple":                # random phase
+        amp, phase = values.pop("sin1_nm"), float(rng.uniform(0.0, 2.0 * math.pi))
+        values.update(sin1_nm=amp * math.cos(phase), cos1_nm=amp * math.sin(phase))
+    if name == "inertia":                     # the analysis filter of the reference rate
+        values.update(accel_cutoff_hz=INERTIA_FILTER["accel_cutoff_hz"],
+                      max_gap_s=INERTIA_FILTER["max_gap_s"])
     return make_term(name, values)
+
+
+# The acceleration filter the workflow derives for the reference trajectory (default
+# settings at 50 Hz): hidden inertia is J times that alpha, the library's own shape.
+INERTIA_FILTER = {"accel_cutoff_hz": 10.0, "max_gap_s": 0.1}
+
+
+def reference_acceleration(rec):
+    """Return the zero-phase acceleration the workflow derives for ``rec`` (defaults)."""
+    from bb_friction_ros.discrepancy.settings import DiscrepancySettings
+    from bb_friction_ros.discrepancy.workflow import with_acceleration
+    return with_acceleration(rec, DiscrepancySettings())[0].nut_accel_rad_s2
 
 
 def synthesize(base, terms, noise_nm, rng):
     """Return (Recording with measured torque, noise array): baseline + terms + noise."""
     r = base.recording
     noise = rng.normal(0.0, noise_nm, len(r))
+    accel = reference_acceleration(r) if "inertia" in terms.names else None
     hidden = terms.torque_nm(r.t_run_s, r.nut_angle_rad, r.nut_velocity_rad_s,
-                             r.axial_load_n) if len(terms) else 0.0
+                             r.axial_load_n, accel) if len(terms) else 0.0
     rec = dataclasses.replace(r, torque_meas_nm=r.torque_pred_nm + hidden + noise,
                               info=dict(r.info, hidden=list(terms.names)))
     return rec, noise
@@ -151,3 +179,23 @@ def random_case(base, rng, n_effects):
     noise_nm = float(rng.uniform(*NOISE_RANGE_NM))
     rec, noise = synthesize(base, terms, noise_nm, rng)
     return rec, terms, noise, noise_nm
+
+
+def named_correctly(analysis, hidden_names):
+    """
+    Tell whether the workflow named the hidden effects.
+
+    The selected set must equal the hidden one; a member of an ambiguous pair (offset,
+    coulomb_asymmetry) counts for its partner when the analysis reports the pair as one
+    ambiguous effect, as it must where the data cannot separate the two.
+    """
+    got, want = set(analysis.terms.names), set(hidden_names)
+    if got == want:
+        return True
+    for amb in analysis.ambiguities:
+        if not amb["separated"]:
+            a, b = amb["pair"]
+            swap = {a: b, b: a}
+            if {swap.get(n, n) for n in got} == want:
+                return True
+    return False

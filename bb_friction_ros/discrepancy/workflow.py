@@ -5,13 +5,18 @@ The discrepancy workflow: residual, where, which effect, add it, show the gap sh
 ``run_discrepancy`` adds reading the input and writing ``augmented.yaml``, ``summary.json``
 and ``report.md`` with its PNGs.
 
+0. The nut acceleration: the CSV's column, or derived per continuous segment with the
+   zero-phase filter (``with_acceleration``).
 1. Residual = measured - predicted, the prediction from the replay path (data.py).
-2. Where: the noise level is estimated from the residual itself (regimes.noise_std_nm) and
-   the residual is binned by direction, speed, angle within a revolution, load and time;
-   significant bins are the ``regions``.
+2. Where: the noise level and its autocorrelation time are estimated from the residual
+   itself (regimes.noise_model) and the residual is binned by direction, speed, angle within
+   a revolution, load, time, acceleration and stroke position; significant bins are the
+   ``regions``.
 3. Which effect: selection.select on the first (1 - holdout_fraction) of the samples.
 4. The selected terms go into ``augmented.yaml`` (base config + ``empirical_terms``).
-5. RMSE before/after, regime table and plots on the held-out last part.
+5. RMSE before/after, regime table and plots on the held-out last part; terms that do not
+   lower the held-out RMSE are not adopted (verdict "none", ``rejected_terms``).
+6. ``--validate``: the terms applied, unchanged, to a second recording (``validate``).
 
 A recording that cannot tell effects apart raises InsufficientData listing everything
 missing (the CLI writes it to summary.json with verdict "none" and exits 2): fewer than
@@ -27,8 +32,8 @@ import numpy as np
 
 from bb_friction_ros.discrepancy import regimes
 from bb_friction_ros.discrepancy.data import inputs_of
-from bb_friction_ros.discrepancy.selection import candidates, select
-from bb_friction_ros.empirical_terms import TermSet
+from bb_friction_ros.discrepancy.selection import ambiguities, candidates, select
+from bb_friction_ros.empirical_terms import filter_lag_s, TermSet, zero_phase_acceleration
 from bb_friction_ros.model_file import read_model_file, write_model_file
 
 
@@ -39,6 +44,57 @@ class InsufficientData(ValueError):
         """Keep the list of what is missing."""
         super().__init__("; ".join(missing))
         self.missing = list(missing)
+
+
+def acceleration_filter_of(rec, settings):
+    """
+    Return the acceleration filter's settings for a recording: {accel_cutoff_hz, max_gap_s}.
+
+    The cut-off is ``accel_cutoff_hz``, at most ``accel_max_cutoff_fraction`` of the sample
+    rate (1 / median step); a step longer than ``segment_gap_factor`` median steps is a gap.
+    """
+    dt = np.diff(rec.t_s)
+    dt = dt[dt > 0]
+    if dt.size == 0:
+        return None
+    step = float(np.median(dt))
+    return {"accel_cutoff_hz": min(settings.accel_cutoff_hz,
+                                   settings.accel_max_cutoff_fraction / step),
+            "max_gap_s": settings.segment_gap_factor * step}
+
+
+def with_acceleration(rec, settings, spec=None):
+    """
+    Return ``rec`` with its nut acceleration: the CSV's own column, or derived.
+
+    Derived: the zero-phase ``AccelerationFilter`` on the nut velocity per continuous
+    segment.  Runs (the stamps restart) are filtered on their own, each with the gap rule and
+    the cut-off limit of its own sample rate (a recording of several recorder files may mix
+    rates); ``spec`` (filter settings) overrides the cut-off.  Samples of segments too short
+    to derive it are NaN.  Return (recording, spec of the whole recording).
+    """
+    whole = acceleration_filter_of(rec, settings)
+    if spec is not None and whole is not None:
+        whole["accel_cutoff_hz"] = spec["accel_cutoff_hz"]
+    if rec.nut_accel_rad_s2 is not None or whole is None:
+        return rec, whole
+    accel = np.full(len(rec), np.nan)
+    starts = np.concatenate(([0], np.flatnonzero(np.diff(rec.t_s) < 0.0) + 1, [len(rec)]))
+    cutoffs = []
+    for lo, hi in zip(starts[:-1], starts[1:]):
+        run = rec.take(slice(lo, hi))
+        own = acceleration_filter_of(run, settings)
+        if own is None:
+            continue
+        fc = min(whole["accel_cutoff_hz"], own["accel_cutoff_hz"])
+        cutoffs.append(fc)
+        accel[lo:hi] = zero_phase_acceleration(run.t_s, run.nut_velocity_rad_s, fc,
+                                               own["max_gap_s"],
+                                               settings.accel_min_segment_samples)
+    info = dict(rec.info)
+    if cutoffs and (min(cutoffs) < whole["accel_cutoff_hz"]):
+        info["acceleration_run_cutoff_hz"] = [min(cutoffs), max(cutoffs)]
+    return dataclasses.replace(rec, nut_accel_rad_s2=accel, info=info), whole
 
 
 def adequacy(x_fit, n_usable, settings):
@@ -79,14 +135,54 @@ def adequacy(x_fit, n_usable, settings):
         untested["load_dependent"] = (
             f"axial load nearly constant ({l10:.4g}-{l90:.4g} N): a load-proportional term "
             "cannot be told from seal_drag (min_load_variation_fraction)")
+    if "load_dependent" in untested:
+        untested["lead_error"] = (
+            "axial load nearly constant: the load-scaled lead-error ripple is the same column "
+            "as angle_ripple (which is tested)")
     counts, _ = np.histogram(np.mod(x_fit.nut_angle_rad, 2 * math.pi),
                              bins=settings.angle_bins, range=(0.0, 2 * math.pi))
     if counts.min() < settings.min_samples_per_angle_bin:
-        untested["lead_error"] = (
-            f"the nut angle does not cover a whole revolution ({int((counts >= 1).sum())} of "
-            f"{settings.angle_bins} angle bins hold samples; need "
-            f"{settings.min_samples_per_angle_bin} in each)")
+        reason = (f"the nut angle does not cover a whole revolution ({int((counts >= 1).sum())} "
+                  f"of {settings.angle_bins} angle bins hold samples; need "
+                  f"{settings.min_samples_per_angle_bin} in each)")
+        untested["lead_error"] = reason
+        untested["angle_ripple"] = reason
+    stroke = _stroke_gap(x_fit, settings)
+    if stroke:
+        untested["stroke_position"] = stroke
+    accel = x_fit.nut_accel_rad_s2
+    if accel is None or not np.any(np.abs(accel) > 0):
+        untested["inertia"] = "no acceleration in the fit part"
     return missing, untested
+
+
+def _stroke_gap(x, settings):
+    """
+    Return why stroke_position cannot be tested on inputs ``x`` ("" when it can).
+
+    A change along the stroke is told from a change in time, speed or direction only when
+    the nut passes the same stretch of the stroke in both directions: the travel (P5-P95 of
+    the cumulative angle) must reach ``min_stroke_revolutions`` and every one of
+    ``stroke_bins`` equal stretches must hold ``min_bin_samples`` moving samples in each
+    direction.
+    """
+    phi = x.nut_angle_rad
+    lo, hi = np.percentile(phi, [5, 95])
+    if hi - lo < settings.min_stroke_revolutions * 2 * math.pi:
+        return (f"the nut travels {(hi - lo) / (2 * math.pi):.3g} rev (P5-P95) in the fit "
+                f"part; need {settings.min_stroke_revolutions} rev to tell a change along the "
+                "stroke from a change in time (min_stroke_revolutions)")
+    w = x.nut_velocity_rad_s
+    moving = np.abs(w) > settings.standstill_speed_rad_s
+    edges = np.linspace(lo, hi, settings.stroke_bins + 1)
+    for sign in (+1, -1):
+        counts, _ = np.histogram(phi[moving & (np.sign(w) == sign)], bins=edges)
+        if counts.min() < settings.min_bin_samples:
+            return ("the nut does not pass every stretch of its stroke in both directions "
+                    f"(fewer than {settings.min_bin_samples} samples moving "
+                    f"{'+' if sign > 0 else '-'} in a stretch): a change along the stroke "
+                    "cannot be told from one with direction or time")
+    return ""
 
 
 @dataclasses.dataclass
@@ -109,10 +205,14 @@ class Analysis:
     rmse_before_nm: float      # held-out
     rmse_after_nm: float
     dropped: dict
+    noise: object = None       # regimes.NoiseModel
+    accel_filter: dict = None  # the acceleration filter's settings (None: CSV column)
+    ambiguities: list = dataclasses.field(default_factory=list)
+    rejected_terms: TermSet = None     # selected, but no better on the held-out part
 
     @property
     def verdict(self):
-        """Return "found" when terms were selected, else "none"."""
+        """Return "found" when terms were selected (and improve the held-out part)."""
         return "found" if len(self.terms) else "none"
 
 
@@ -126,15 +226,28 @@ def usable(rec):
     predicted = np.isfinite(rec.torque_pred_nm) & rec.converged
     dropped = {"no_measurement": int((~measured).sum()),
                "model_not_converged": int((measured & ~predicted).sum())}
-    return measured & predicted, dropped
+    ok = measured & predicted
+    if rec.nut_accel_rad_s2 is not None:
+        accel = np.isfinite(rec.nut_accel_rad_s2)
+        dropped["no_acceleration"] = int((ok & ~accel).sum())
+        ok &= accel
+    return ok, dropped
 
 
 def analyse(rec, settings):
     """Run steps 1-3 and 5 on a Recording; raise InsufficientData when it cannot tell."""
+    rec, spec = with_acceleration(rec, settings)
     ok, dropped = usable(rec)
     if not ok.any():
-        what = "no measured torque" if dropped["no_measurement"] == len(rec) else \
-            "no sample with both a measured torque and a converged prediction"
+        if dropped["no_measurement"] == len(rec):
+            what = "no measured torque"
+        elif dropped.get("no_acceleration"):
+            what = (f"too short to derive the acceleration: no continuous segment has "
+                    f"{settings.accel_min_segment_samples} samples (accel_min_segment_samples; "
+                    f"a step longer than {settings.segment_gap_factor} median steps splits "
+                    "segments)")
+        else:
+            what = "no sample with both a measured torque and a converged prediction"
         raise InsufficientData([what])
     rec = rec.take(ok)
     n = len(rec)
@@ -151,22 +264,33 @@ def analyse(rec, settings):
             untested["stribeck"] = ("no low-speed samples below the fast ones: the Stribeck "
                                     "velocity grid is empty")
     r = rec.torque_meas_nm - rec.torque_pred_nm
-    noise = regimes.noise_std_nm(r)
-    terms, trace = select(x_fit, r[fit_mask], settings, skip=tuple(untested))
+    noise = regimes.noise_model(r, settings.noise_max_lag, settings.noise_plateau_ratio,
+                                rec.nut_velocity_rad_s, rec.t_s)
+    fixed = {"inertia": spec} if spec else {}
+    terms, trace, ctx = select(x_fit, r[fit_mask], settings, skip=tuple(untested),
+                               fixed=fixed, tau=noise.tau)
+    ambiguous = ambiguities(ctx, x_fit, r[fit_mask], settings) if len(terms) else []
     x = inputs_of(rec)
-    added = terms.torque_nm(x.t_s, x.nut_angle_rad, x.nut_velocity_rad_s, x.axial_load_n) \
-        if len(terms) else np.zeros(n)
+    hold = ~fit_mask
+    rejected = None
+    added = terms.torque_nm(x.t_s, x.nut_angle_rad, x.nut_velocity_rad_s, x.axial_load_n,
+                            x.nut_accel_rad_s2) if len(terms) else np.zeros(n)
+    if len(terms) and not _rms((r - added)[hold]) < _rms(r[hold]):
+        # selected on the fit part but no better on the held-out part (e.g. a recording
+        # whose two halves disagree): not an effect this recording supports
+        rejected, terms, added = terms, TermSet(), np.zeros(n)
+        ambiguous = []
     after = r - added
     bins = regimes.make_bins(x, settings)
-    hold = ~fit_mask
     x_hold = inputs_of(rec, hold)
+    tau = noise.tau
     return Analysis(
-        rec, fit_mask, r, added, noise, terms, trace, untested, bins,
-        regimes.regime_table(bins, x, r, noise, settings),
-        regimes.regime_table(bins, x, after, noise, settings),
-        regimes.regime_table(bins, x_hold, r[hold], noise, settings),
-        regimes.regime_table(bins, x_hold, after[hold], noise, settings),
-        _rms(r[hold]), _rms(after[hold]), dropped)
+        rec, fit_mask, r, added, noise.std_nm, terms, trace, untested, bins,
+        regimes.regime_table(bins, x, r, noise.std_nm, settings, tau),
+        regimes.regime_table(bins, x, after, noise.std_nm, settings, tau),
+        regimes.regime_table(bins, x_hold, r[hold], noise.std_nm, settings, tau),
+        regimes.regime_table(bins, x_hold, after[hold], noise.std_nm, settings, tau),
+        _rms(r[hold]), _rms(after[hold]), dropped, noise, spec, ambiguous, rejected)
 
 
 def _region(row):
@@ -182,6 +306,13 @@ def summary_of(a, info=None):
         reason = (f"{', '.join(a.terms.names)} explain(s) the residual: held-out RMSE "
                   f"{a.rmse_before_nm:.4g} -> {a.rmse_after_nm:.4g} N m (noise "
                   f"{a.noise_nm:.3g} N m)")
+    elif a.rejected_terms is not None:
+        bad = a.rejected_terms.torque_nm(*_xargs(a))
+        after = _rms((a.residual_nm - bad)[~a.fit_mask])
+        reason = (f"the terms selected on the fit part ({', '.join(a.rejected_terms.names)}) "
+                  f"do not improve the held-out part (RMSE {a.rmse_before_nm:.4g} -> "
+                  f"{after:.4g} N m), so none is adopted: the two parts of the recording "
+                  "disagree, or the effect is outside the library")
     elif regions:
         reason = ("no library term brings strong evidence, but the residual is significant in "
                   f"{len(regions)} regime(s): an effect outside the library")
@@ -190,13 +321,16 @@ def summary_of(a, info=None):
                   "noise: the model agrees with the measurement")
     noise = a.noise_nm
     reducible = a.rmse_before_nm - noise
-    return {
+    rec_info = info or a.recording.info
+    out = {
         "verdict": a.verdict,
         "reason": reason,
         "effects": a.terms.effects(),
+        "ambiguities": a.ambiguities,
         "rmse_before_nm": a.rmse_before_nm,
         "rmse_after_nm": a.rmse_after_nm,
         "noise_std_nm": noise,
+        "noise": a.noise.as_dict() if a.noise is not None else None,
         "reducible_removed_fraction": (a.rmse_before_nm - a.rmse_after_nm) / reducible
         if reducible > 0 else None,
         "regions": regions,
@@ -205,8 +339,27 @@ def summary_of(a, info=None):
         "samples": {"usable": len(a.recording), "fit": int(a.fit_mask.sum()),
                     "holdout": int((~a.fit_mask).sum()), "dropped": a.dropped},
         "selection": a.trace,
-        "input": info or a.recording.info,
+        "acceleration": _acceleration_info(a, rec_info),
+        "identified_from_data_only": rec_info.get("baseline") == "zero",
+        "input": rec_info,
     }
+    if a.rejected_terms is not None:
+        out["rejected_effects"] = a.rejected_terms.effects()
+    return out
+
+
+def _xargs(a):
+    x = inputs_of(a.recording)
+    return x.t_s, x.nut_angle_rad, x.nut_velocity_rad_s, x.axial_load_n, x.nut_accel_rad_s2
+
+
+def _acceleration_info(a, info):
+    out = {"source": info.get("acceleration_source", "derived (zero-phase filter)")}
+    if a.accel_filter:
+        fc = a.accel_filter["accel_cutoff_hz"]
+        out.update(cutoff_hz=fc, max_gap_s=a.accel_filter["max_gap_s"],
+                   live_lag_s=filter_lag_s(fc))
+    return out
 
 
 def insufficient_summary(exc, info=None):
@@ -222,25 +375,87 @@ AUGMENTED_HEADER = (
     "# empirical_terms to the physics prediction as a separate part.\n")
 
 
-def write_augmented(path, config_path, terms):
+def write_augmented(path, config_path, terms, zero_baseline=False):
     """
     Write ``augmented.yaml``: the base ``ball_screw`` mapping plus ``empirical_terms``.
 
     Terms already in the base config are kept (the new ones were fitted on top of them).
     """
     base, existing = read_model_file(config_path)
+    note = ""
+    if zero_baseline:
+        note = ("# --baseline zero: the terms were fitted to the measured torque alone (no model\n"
+                "# of this screw); they are the whole torque, the ball_screw part is only the\n"
+                "# base config the runner needs.\n")
     return write_model_file(path, base, TermSet(existing.terms + terms.terms),
-                            AUGMENTED_HEADER + f"# base config: {config_path}\n")
+                            AUGMENTED_HEADER + note + f"# base config: {config_path}\n")
+
+
+@dataclasses.dataclass
+class Validation:
+    """The augmented model applied, unchanged, to a second recording."""
+
+    recording: object          # data.Recording of the usable samples (with acceleration)
+    added_nm: np.ndarray       # the selected terms' torque on it
+    summary: dict              # summary.json["validation"]
+
+
+def validate(a, rec, settings):
+    """
+    Apply the selected terms of Analysis ``a`` to Recording ``rec``: no refit.
+
+    The acceleration uses the fitted filter's cut-off (the inertia term's, or the analysis
+    one) with ``rec``'s own gap rule.  Relative error = ||meas - pred|| / ||meas||.
+    """
+    spec = acceleration_filter_of(rec, settings)
+    if spec is not None and a.accel_filter:
+        spec["accel_cutoff_hz"] = a.accel_filter["accel_cutoff_hz"]
+    rec, _ = with_acceleration(rec, settings, spec)
+    ok, dropped = usable(rec)
+    if not ok.any():
+        raise InsufficientData([f"validation recording {rec.info.get('input', '?')}: no "
+                                f"usable sample (dropped: {dropped})"])
+    rec = rec.take(ok)
+    x = inputs_of(rec)
+    added = a.terms.torque_nm(x.t_s, x.nut_angle_rad, x.nut_velocity_rad_s, x.axial_load_n,
+                              x.nut_accel_rad_s2) if len(a.terms) else np.zeros(len(rec))
+    meas, pred = rec.torque_meas_nm, rec.torque_pred_nm
+    norm = float(np.linalg.norm(meas))
+
+    def rel(e):
+        return float(np.linalg.norm(e)) / norm if norm > 0 else None
+
+    summary = {"n": len(rec), "rmse_before_nm": _rms(meas - pred),
+               "rmse_after_nm": _rms(meas - pred - added),
+               "relative_error_before": rel(meas - pred),
+               "relative_error_after": rel(meas - pred - added),
+               "input": rec.info.get("input"), "dropped": dropped,
+               "terms": list(a.terms.names)}
+    return Validation(rec, added, summary)
+
+
+def write_validation_csv(path, v):
+    """Write ``validation/prediction.csv``: t_s, torque_meas_nm, torque_pred_nm, augmented."""
+    rec = v.recording
+    table = np.column_stack([rec.t_s, rec.torque_meas_nm, rec.torque_pred_nm,
+                             rec.torque_pred_nm + v.added_nm])
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savetxt(path, table, delimiter=",", fmt="%.17g", comments="",
+               header="t_s,torque_meas_nm,torque_pred_nm,torque_augmented_nm")
+    return path
 
 
 def run_discrepancy(input_path, out, config=None, settings=None, replay_settings=None,
-                    topics=None, recompute=False, plots=True, progress=False):
+                    topics=None, recompute=False, plots=True, progress=False, validate_path=None,
+                    baseline="model"):
     """
     Run the whole workflow on a bag or CSV into directory ``out``; return (status, summary).
 
     Status 0: analysed (verdict "found" or "none").  Status 2: the recording is too short or
     too flat to tell (summary.json and report.md say what is missing).  An unreadable input
-    raises data.InputProblem; a bad config raises ConfigError.
+    raises data.InputProblem; a bad config raises ConfigError.  ``validate_path``: a second
+    recording the augmented model is applied to without refitting (``DIR/validation/``).
+    ``baseline`` "zero": no model of this screw; every term is identified from the data.
     """
     from pathlib import Path
     import json
@@ -252,22 +467,29 @@ def run_discrepancy(input_path, out, config=None, settings=None, replay_settings
     from bb_friction_ros.node_parameters import NodeParameters
     settings = settings or DiscrepancySettings()
     config = Path(config) if config else bundled_config("ball_screw.yaml")
-    rec = load_recording(input_path, config, replay_settings or NodeParameters(),
-                         topics or Topics(), recompute=recompute, progress=progress)
+    load = dict(replay_settings=replay_settings or NodeParameters(), topics=topics or Topics(),
+                recompute=recompute, progress=progress, baseline=baseline)
+    rec = load_recording(input_path, config, **load)
+    rec2 = load_recording(validate_path, config, **load) if validate_path else None
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     try:
         a = analyse(rec, settings)
+        v = validate(a, rec2, settings) if rec2 is not None else None
     except InsufficientData as exc:
         summary = insufficient_summary(exc, rec.info)
         (out / "summary.json").write_text(json.dumps(summary, indent=2))
         write_insufficient_report(out, summary)
         return 2, summary
-    augmented = write_augmented(out / "augmented.yaml", config, a.terms)
+    augmented = write_augmented(out / "augmented.yaml", config, a.terms,
+                                zero_baseline=rec.info.get("baseline") == "zero")
     summary = summary_of(a, rec.info)
     summary["augmented_config"] = str(augmented)
     summary["base_config"] = str(config)
+    if v is not None:
+        write_validation_csv(out / "validation" / "prediction.csv", v)
+        summary["validation"] = v.summary
     summary["settings"] = dataclasses.asdict(settings)
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
-    write_report(out, a, summary, plots=plots)
+    write_report(out, a, summary, plots=plots, validation=v)
     return 0, summary
