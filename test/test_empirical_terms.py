@@ -139,3 +139,38 @@ def test_effects_report_units():
     effects = load_terms(ALL_TERMS[:1]).effects()
     assert effects == [{"name": "viscous_drag", "params": {"c_nm_s_per_rad": 0.004},
                         "units": {"c_nm_s_per_rad": "N m s/rad"}}]
+
+
+FULL_TERMS = [
+    {"name": "lead_error", "params": {f"{k}{h}_m": 1e-6 * (h + 0.3 * (k == "cos"))
+                                      for h in range(1, 5) for k in ("sin", "cos")}},
+    {"name": "angle_ripple", "params": {f"{k}{h}_nm": 1e-3 / h * (-1) ** h
+                                        for h in range(1, 5) for k in ("sin", "cos")}},
+    {"name": "stroke_position", "params": {"center_rad": 10.0, "half_range_rad": 25.0,
+                                           "p1_nm": 0.01, "p2_nm": -0.004, "p3_nm": 0.002}},
+]
+
+
+@pytest.mark.parametrize("entries", [[e] for e in ALL_TERMS + NEW_TERMS + FULL_TERMS]
+                         + [ALL_TERMS + NEW_TERMS + FULL_TERMS],
+                         ids=lambda es: es[0]["name"] if len(es) == 1 else "all")
+def test_live_terms_equal_the_vectorised_terms_bit_for_bit(entries):
+    """
+    LiveTerms' per-sample path (node and replay) gives exactly TermSet.torque_nm's number at
+    each sample: replay's output must not move when the evaluation is made cheaper.
+    """
+    terms = load_terms(entries)
+    live = terms.live()
+    rng = np.random.default_rng(11)
+    n = 600
+    t = np.cumsum(rng.uniform(0.0, 2e-3, n))
+    phi = rng.uniform(-80.0, 80.0, n)
+    w = rng.normal(0.0, 10.0, n)
+    w[::7] = 0.0                                   # standstill: sign 0, drag terms 0
+    w[3::11] *= 1e-9                               # tiny speeds near the Stribeck peak
+    load = rng.uniform(-3000.0, 3000.0, n)
+    for k in range(n):
+        got = live.torque_nm(t[k], t[k] - t[0], phi[k], w[k], load[k])
+        want = float(terms.torque_nm(t[k] - t[0], phi[k], w[k], load[k],
+                                     live.last_accel_rad_s2))
+        assert got.hex() == want.hex(), (k, got, want)
