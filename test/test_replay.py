@@ -141,6 +141,36 @@ def test_replay_bag_decodes_with_the_mcap_library_alone(tmp_path):
     assert topics["/nut_state"][0][2].name == ["nut_joint"]
 
 
+def test_packed_prediction_and_feedforward_are_rosbags_own_cdr():
+    """replay packs the two per-sample messages itself: byte for byte what rosbags writes."""
+    from bb_friction_ros.bags import friction_typestore
+    from bb_friction_ros.replay import (FEEDFORWARD_TOPIC, feedforward_cdr, prediction_cdr,
+                                        PREDICTION_TOPIC)
+    from bb_friction_ros.runner import Prediction
+    store = friction_typestore()
+    t = store.types
+    rng = np.random.default_rng(3)
+    for k in range(50):
+        v = rng.normal(0.0, 10.0, 10)
+        stamp = int(rng.integers(0, 2**31 - 1)) * 1_000_000_000 + int(rng.integers(0, 10**9))
+        groups = tuple(((1, 2), (3.0,)) for _ in range(k % 4))
+        pred = Prediction(0.0, *v[:7], bool(k % 3), v[7], groups, 37, False, v[8])
+        sec, nanosec = divmod(stamp, 1_000_000_000)
+        header = t["std_msgs/msg/Header"](
+            stamp=t["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec), frame_id="")
+        msg = t[PREDICTION_TOPIC[1]](
+            header=header, nut_angle_rad=v[0], nut_velocity_rad_s=v[1], axial_load_n=v[2],
+            torque_total_nm=v[3], torque_b2g_nm=v[4], torque_b2b_nm=v[5],
+            torque_empirical_nm=v[6], converged=bool(k % 3), model_latency_s=v[9],
+            model_age_s=v[7], n_groups=len(groups))
+        assert prediction_cdr(pred, sec, nanosec, v[9]) == \
+            bytes(store.serialize_cdr(msg, PREDICTION_TOPIC[1], little_endian=True))
+        ff = t[FEEDFORWARD_TOPIC[1]](layout=t["std_msgs/msg/MultiArrayLayout"](
+            dim=[], data_offset=0), data=np.array([v[8]]))
+        assert feedforward_cdr(v[8]) == \
+            bytes(store.serialize_cdr(ff, FEEDFORWARD_TOPIC[1], little_endian=True))
+
+
 def test_replay_bag_feedforward_is_the_safe_value_of_unconverged_steps(tmp_path):
     """Finding 2: the output bag's feedforward carries the runner's safe value, as the node."""
     from rosbags.rosbag2 import Reader
