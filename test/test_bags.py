@@ -78,3 +78,62 @@ def test_measured_torque_is_aligned_run_by_run():
     assert got[:5].tolist() == [1.0, 1.5, 2.0, 12.5, 15.0]
     assert got[5] != got[5]                      # after the pass's last measurement: NaN
     assert measured_torque_at([], [0.0]) is None
+
+
+def _joint_state_cdr(store, names, positions, velocities, effort, frame_id="", sec=7,
+                     nanosec=123_456_789, little_endian=True):
+    import numpy as np
+    t = store.types
+    msg = t["sensor_msgs/msg/JointState"](
+        header=t["std_msgs/msg/Header"](stamp=t["builtin_interfaces/msg/Time"](
+            sec=sec, nanosec=nanosec), frame_id=frame_id),
+        name=list(names), position=np.array(positions, float),
+        velocity=np.array(velocities, float), effort=np.array(effort, float))
+    return bytes(store.serialize_cdr(msg, "sensor_msgs/msg/JointState",
+                                     little_endian=little_endian))
+
+
+def test_fast_input_decoding_equals_rosbags_and_leaves_anything_odd_to_it():
+    """
+    The struct decoders of the input topics give rosbags' values exactly, and return None
+    (rosbags then decodes or names the damage) for what they do not fully accept.
+    """
+    import numpy as np
+    from bb_friction_ros.bags import (_typestore, fast_joint_state, fast_wrench_force_z,
+                                      fast_wrench_torque_z)
+    store = _typestore()
+    rng = np.random.default_rng(5)
+    cases = [((), (), (), ()), (("nut_joint",), (0.1,), (6.0,), ()),
+             (("a", "nüt", "joint_3"), rng.normal(size=3), rng.normal(size=3), (1.0, 2, 3)),
+             (("nut_joint",), (1.5,), (), ()), (("x" * 5, "y"), (1.0,), (2.0, 3.0), (4.0,))]
+    for frame_id in ("", "base", "odd_len"):
+        for names, pos, vel, eff in cases:
+            raw = _joint_state_cdr(store, names, pos, vel, eff, frame_id)
+            msg = store.deserialize_cdr(raw, "sensor_msgs/msg/JointState")
+            assert fast_joint_state(raw) == (7, 123_456_789, tuple(msg.name),
+                                             tuple(float(x) for x in msg.position),
+                                             tuple(float(x) for x in msg.velocity))
+            assert fast_joint_state(memoryview(raw)) == fast_joint_state(raw)
+            # damaged or unusual: the fast path declines
+            assert fast_joint_state(raw[:-9]) is None
+            assert fast_joint_state(raw + b"\0" * 8) is None
+            assert fast_joint_state(_joint_state_cdr(store, names, pos, vel, eff, frame_id,
+                                                     little_endian=False)) is None
+    raw = bytearray(_joint_state_cdr(store, ("nut_joint",), (0.1,), (6.0,), ()))
+    raw[4 + 8 + 8 + 4 + 4 + 9] = ord("X")           # the joint name's terminator
+    assert fast_joint_state(bytes(raw)) is None
+    with pytest.raises(Exception):
+        store.deserialize_cdr(bytes(raw), "sensor_msgs/msg/JointState")
+    t = store.types
+    for frame_id in ("", "load_cell"):
+        vec = t["geometry_msgs/msg/Vector3"]
+        msg = t["geometry_msgs/msg/WrenchStamped"](
+            header=t["std_msgs/msg/Header"](stamp=t["builtin_interfaces/msg/Time"](
+                sec=-3, nanosec=999_999_999), frame_id=frame_id),
+            wrench=t["geometry_msgs/msg/Wrench"](force=vec(x=1.0, y=2.0, z=-1500.25),
+                                                 torque=vec(x=4.0, y=5.0, z=0.125)))
+        raw = bytes(store.serialize_cdr(msg, "geometry_msgs/msg/WrenchStamped"))
+        assert fast_wrench_force_z(raw) == (-3, 999_999_999, -1500.25)
+        assert fast_wrench_torque_z(raw) == (-3, 999_999_999, 0.125)
+        assert fast_wrench_force_z(raw[:-1]) is None
+        assert fast_wrench_force_z(raw + bytes(4)) is None
