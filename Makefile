@@ -8,7 +8,7 @@ VENV := .venv
 # setting its own LD_LIBRARY_PATH.
 unexport _ROS_WHEELS_BOOTSTRAP_COMPLETE
 
-.PHONY: setup test demo clean distclean
+.PHONY: setup test colcon-test demo clean distclean
 
 setup:
 	@command -v $(PYTHON) >/dev/null || { echo "make: $(PYTHON) not found: install" \
@@ -17,6 +17,25 @@ setup:
 
 test: setup
 	$(VENV)/bin/python -m pytest -q test
+
+# A ROS 2 workspace as a user lays it out (README, "Building in a ROS 2 workspace"): the
+# repository and the link to its interface package under build/ws/src, built and tested by
+# colcon (pinned in requirements.txt) over the venv's ROS wheels. Fails on any test failure.
+WS := build/ws
+VENV_ABS := $(CURDIR)/$(VENV)
+COLCON_ENV := PATH="$(VENV_ABS)/bin:$$PATH" VIRTUAL_ENV="$(VENV_ABS)" \
+	AMENT_PREFIX_PATH="$(VENV_ABS)" CMAKE_PREFIX_PATH="$(VENV_ABS)" COLCON_HOME="$(CURDIR)/$(WS)/.colcon"
+
+colcon-test: setup
+	rm -rf $(WS)
+	mkdir -p $(WS)/src
+	ln -s $(CURDIR) $(WS)/src/bb_friction_ros
+	ln -s bb_friction_ros/msg_defs/bb_friction_msgs $(WS)/src/bb_friction_msgs
+	cd $(WS) && $(COLCON_ENV) colcon build --event-handlers console_cohesion+ \
+		--cmake-args -DPython3_EXECUTABLE=$(VENV_ABS)/bin/python -DCMAKE_BUILD_TYPE=Release
+	cd $(WS) && $(COLCON_ENV) colcon test --return-code-on-test-failure \
+		--event-handlers console_cohesion+ --pytest-args -q
+	cd $(WS) && $(COLCON_ENV) colcon test-result --verbose
 
 demo: setup
 	$(VENV)/bin/bb-friction reproduce --out out/reproduce

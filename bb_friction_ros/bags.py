@@ -3,26 +3,77 @@ rosbag2 recordings (sqlite3 and mcap) read and written with ``rosbags``, without
 
 Messages are yielded in log order, the order ``ros2 bag play`` publishes them, so a replay
 sees what the live node would: including header stamps that jump backwards.
+
+``BagInput`` streams a bag: the topics the node subscribes to are resolved and type-checked
+before the first message is read, every message is counted as it is read, and a damaged bag
+is a ``BagError`` naming the file, never a traceback from the storage library.
+
+rosbags is imported on first use: it costs about 0.5 s, and every ``bb-friction`` command
+builds its parser from this module's ``Topics``.
 """
 
-from dataclasses import dataclass
+from collections import Counter, deque
+from dataclasses import dataclass, field
+import importlib.util
+import math
 from pathlib import Path
 
 import numpy as np
-from rosbags.rosbag2 import Reader, StoragePlugin, Writer
-from rosbags.typesys import get_typestore, Stores
+import yaml
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 WRENCH_STAMPED = "geometry_msgs/msg/WrenchStamped"
+MSGS_PACKAGE = "bb_friction_msgs"
+# The message type each input kind must have, and the CLI flag that names its topic.
+KIND_TYPES = {"nut_state": JOINT_STATE, "axial_load": WRENCH_STAMPED,
+              "measured_torque": WRENCH_STAMPED}
+KIND_FLAGS = {"nut_state": "--nut-state-topic", "axial_load": "--axial-load-topic",
+              "measured_torque": "--measured-topic"}
+# Joint names listed in an error about nut_state: enough to spot a misnamed joint.
+MAX_JOINT_NAMES_KEPT = 20
+
+
+class BagError(ValueError):
+    """A recording that cannot be used as asked; the message names the file and the fix."""
 
 
 @dataclass(frozen=True)
 class Topics:
-    """Topic names of a recording (leading '/' optional)."""
+    """
+    Topic names of a recording.
+
+    A name without a leading '/' is relative, resolved in the root namespace as the node's
+    own topics are (``nut_state`` is ``/nut_state``).  A topic recorded under a namespace
+    (``/robot/nut_state``) is used only when named so: it is never guessed.
+    """
 
     nut_state: str = "nut_state"
     axial_load: str = "axial_load"
     measured_torque: str = "measured_torque"
+
+    @staticmethod
+    def add_arguments(parser):
+        """Add the flags naming a recording's topics (replay, discrepancy) to ``parser``."""
+        parser.add_argument("--nut-state-topic", default="nut_state",
+                            help="nut state topic (sensor_msgs/JointState); a bag recorded "
+                            "under a namespace needs its full name, e.g. /robot/nut_state")
+        parser.add_argument("--axial-load-topic", default="axial_load",
+                            help="axial load topic (geometry_msgs/WrenchStamped force.z), "
+                            "e.g. /robot/axial_load")
+        parser.add_argument("--measured-topic", default="measured_torque",
+                            help="measured torque topic (geometry_msgs/WrenchStamped "
+                            "torque.z)")
+
+    @classmethod
+    def from_args(cls, args):
+        """Return the Topics named by ``add_arguments``' flags."""
+        return cls(nut_state=args.nut_state_topic, axial_load=args.axial_load_topic,
+                   measured_torque=args.measured_topic)
+
+    def absolute(self, kind):
+        """Return the absolute topic name of ``kind`` ('nut_state', ...)."""
+        name = getattr(self, kind)
+        return name if name.startswith("/") else "/" + name
 
 
 @dataclass(frozen=True)
@@ -35,6 +86,9 @@ class Event:
     positions: tuple = ()
     velocities: tuple = ()
     value: float = float("nan")        # force.z [N] or torque.z [N m]
+    # the header stamp as integer ns when read from a bag: float seconds lose ~0.2 us at
+    # epoch times, and outputs must carry the input stamp unchanged
+    stamp_ns: int = field(default=None, compare=False)
 
 
 def with_measurement(events, measured_nm):
@@ -48,87 +102,362 @@ def with_measurement(events, measured_nm):
     return out
 
 
+class MeasuredAligner:
+    """
+    Measured torque at prediction stamps, run by run, as a stream.
+
+    A recording that loops (``ros2 bag play --loop``, or a source restarted) repeats its
+    stamps.  Aligning by stamp alone would give every pass the last pass's measurement, so
+    both streams are cut into runs where their stamps go backwards (the runner resets the
+    model at the same place) and the k-th run of predictions is aligned with the k-th run of
+    measurements: linear interpolation between the measured samples that bracket the stamp,
+    NaN outside the run's measured span.
+
+    Feed both streams in any interleaving; ``add_*`` and ``finish`` return the
+    ``(payload, measured_nm)`` pairs that became known, in prediction order.  Only the lag
+    between the two streams is held in memory.
+    """
+
+    def __init__(self):
+        """Start with no samples."""
+        self._meas = deque()     # (run, stamp, value), stamps non-decreasing within a run
+        self._preds = deque()    # (run, stamp, payload)
+        self._m_run = self._p_run = 0
+        self._m_last = self._p_last = None
+        self._done = False
+        self.samples = 0         # finite measured samples taken
+
+    def add_measured(self, stamp_s, value_nm):
+        """Take one measured sample (non-finite values are skipped)."""
+        if not (math.isfinite(stamp_s) and math.isfinite(value_nm)):
+            return self._drain()
+        if self._m_last is not None and stamp_s < self._m_last:
+            self._m_run += 1
+        self._m_last = stamp_s
+        self._meas.append((self._m_run, stamp_s, value_nm))
+        self.samples += 1
+        return self._drain()
+
+    def add_prediction(self, stamp_s, payload):
+        """Take one prediction stamp with the payload to return with its measurement."""
+        if self._p_last is not None and stamp_s < self._p_last:
+            self._p_run += 1
+        self._p_last = stamp_s
+        self._preds.append((self._p_run, stamp_s, payload))
+        return self._drain()
+
+    def finish(self):
+        """No more measured samples: resolve everything still waiting."""
+        self._done = True
+        return self._drain()
+
+    def _drain(self):
+        out = []
+        meas = self._meas
+        while self._preds:
+            run, t, payload = self._preds[0]
+            while meas and meas[0][0] < run:
+                meas.popleft()
+            # keep the last sample at or before t (the lower bracket) and what follows it
+            while len(meas) >= 2 and meas[1][0] == run and meas[1][1] <= t:
+                meas.popleft()
+            same = [m for m in list(meas)[:2] if m[0] == run]
+            run_over = self._done or self._m_run > run
+            if same and same[0][1] > t:
+                value = math.nan                      # before the run's first measurement
+            elif same and same[0][1] == t:
+                value = same[0][2]
+            elif len(same) == 2:
+                (_, t0, v0), (_, t1, v1) = same
+                value = v0 + (v1 - v0) * (t - t0) / (t1 - t0)
+            elif run_over:
+                value = math.nan                      # after the run's last measurement
+            else:
+                break                                 # wait for the upper bracket
+            self._preds.popleft()
+            out.append((payload, value))
+        return out
+
+
 def measured_torque_at(events, stamps_s):
     """
-    Return the measured torque interpolated to ``stamps_s`` [N m], or None if none recorded.
+    Return the measured torque at ``stamps_s`` [N m] run by run, or None if none recorded.
 
-    Linear interpolation over the finite recorded samples; NaN outside their span.  Replay
-    and the discrepancy workflow both align the measurement with this, so they agree.
+    ``stamps_s`` are prediction stamps in processing order; see ``MeasuredAligner`` for how
+    a looping recording is aligned pass by pass.  Replay and the discrepancy workflow both
+    align the measurement with it, so they agree.
     """
-    measured = [(e.stamp_s, e.value) for e in events
-                if e.kind == "measured_torque" and np.isfinite(e.value)]
-    if not measured:
+    aligner = MeasuredAligner()
+    for e in events:
+        if e.kind == "measured_torque":
+            aligner.add_measured(e.stamp_s, e.value)
+    if aligner.samples == 0:
         return None
-    mt, mv = np.array(measured).T
-    order = np.argsort(mt, kind="stable")
-    return np.interp(np.asarray(stamps_s, dtype=float), mt[order], mv[order], left=np.nan,
-                     right=np.nan)
+    out = []
+    for k, t in enumerate(np.asarray(stamps_s, dtype=float)):
+        out.extend(aligner.add_prediction(float(t), k))
+    out.extend(aligner.finish())
+    values = np.full(len(out), np.nan)
+    for k, v in out:
+        values[k] = v
+    return values
 
 
 def _typestore():
+    from rosbags.typesys import get_typestore, Stores
     return get_typestore(Stores.ROS2_JAZZY)
 
 
-def _bare(topic):
-    return topic.lstrip("/")
+def _msg_dirs():
+    """Directories that may hold bb_friction_msgs' .msg files, installed one first."""
+    dirs = []
+    spec = importlib.util.find_spec(MSGS_PACKAGE)
+    if spec is not None and spec.origin:
+        # <prefix>/lib/python3.X/site-packages/bb_friction_msgs/__init__.py
+        prefix = Path(spec.origin).resolve().parents[4]
+        dirs.append(prefix / "share" / MSGS_PACKAGE / "msg")
+    dirs.append(Path(__file__).resolve().parents[1] / "msg_defs" / MSGS_PACKAGE / "msg")
+    return dirs
+
+
+def friction_typestore():
+    """
+    Return a Jazzy typestore with bb_friction_msgs registered from its ``.msg`` files.
+
+    Found where rosidl installed them (``<prefix>/share/bb_friction_msgs/msg``), else in the
+    source checkout; rosbags computes the same RIHS01 hashes as rosidl.
+    """
+    from rosbags.typesys import get_types_from_msg
+    store = _typestore()
+    for d in _msg_dirs():
+        files = sorted(d.glob("*.msg"))
+        if files:
+            types = {}
+            for f in files:
+                types.update(get_types_from_msg(f.read_text(), f"{MSGS_PACKAGE}/msg/{f.stem}"))
+            store.register(types)
+            return store
+    raise BagError(f"cannot find the {MSGS_PACKAGE} .msg files (looked in "
+                   f"{', '.join(str(d) for d in _msg_dirs())})")
 
 
 def _stamp(header):
     return header.stamp.sec + 1e-9 * header.stamp.nanosec
 
 
+def _stamp_ns(header):
+    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+
+
+def stamp_ns(event):
+    """Return the event's header stamp in integer ns (exact when read from a bag)."""
+    if event.stamp_ns is not None:
+        return event.stamp_ns
+    return int(round(event.stamp_s * 1e9))
+
+
+def _check_metadata(path):
+    """Refuse a rosbag2 directory whose metadata.yaml is missing, empty or not metadata."""
+    meta = path / "metadata.yaml"
+    if not meta.is_file():
+        raise BagError(f"{path}: not a rosbag2 directory (no metadata.yaml)")
+    try:
+        data = yaml.safe_load(meta.read_bytes())
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        raise BagError(f"{meta}: damaged metadata: not valid YAML "
+                       f"({str(exc).splitlines()[0]})") from None
+    if data is None:
+        raise BagError(f"{meta}: damaged metadata: the file is empty")
+    info = data.get("rosbag2_bagfile_information") if isinstance(data, dict) else None
+    if not isinstance(info, dict):
+        raise BagError(f"{meta}: damaged metadata: no rosbag2_bagfile_information mapping")
+    for key in ("storage_identifier", "relative_file_paths", "topics_with_message_count"):
+        if key not in info:
+            raise BagError(f"{meta}: damaged metadata (truncated?): no {key!r}")
+
+
+class BagInput:
+    """
+    A rosbag2 (directory, or a single .mcap/.db3 file) opened for streaming replay.
+
+    Use as a context manager.  On opening, the topics of ``topics`` are resolved and their
+    message types checked: ``nut_state`` and ``axial_load`` are required,
+    ``measured_torque`` is optional.  ``messages()`` then yields every message in log order;
+    ``counts`` holds the messages actually read per topic (never metadata.yaml's claims) and
+    ``joint_names`` the joint names seen on nut_state.  Every failure is a ``BagError``.
+    """
+
+    def __init__(self, path, topics=Topics()):
+        """Open ``path``; raise BagError (or FileNotFoundError) naming what is wrong."""
+        self.path = Path(path)
+        self.topics = topics
+        if not self.path.exists():
+            raise FileNotFoundError(f"{self.path}: no such bag")
+        if self.path.is_dir():
+            _check_metadata(self.path)
+        from rosbags.rosbag2 import Reader
+        try:
+            self._reader = Reader(self.path)
+            self._reader.open()
+        except Exception as exc:     # rosbags raises its own, sqlite3's and struct's errors
+            raise BagError(f"{self._files()}: not a readable rosbag2 ({_why(exc)})") from None
+        try:
+            self.connections = list(self._reader.connections)
+            self.topic_types = {}
+            for c in self.connections:
+                self.topic_types.setdefault(c.topic, c.msgtype)
+            self.resolved = self._resolve()
+        except BaseException:
+            self.close()
+            raise
+        self.counts = Counter()
+        self.joint_names = Counter()
+        self._store = _typestore()
+
+    def _files(self):
+        paths = getattr(getattr(self, "_reader", None), "paths", None) or []
+        if len(paths) == 1:
+            return str(paths[0])
+        return str(self.path)
+
+    def describe(self):
+        """Return 'topic (type)' for every topic of the bag, comma separated."""
+        return ", ".join(f"{t} ({m})" for t, m in sorted(self.topic_types.items())) or "none"
+
+    def _resolve(self):
+        resolved = {}
+        for kind, msgtype in KIND_TYPES.items():
+            name = self.topics.absolute(kind)
+            found = self.topic_types.get(name)
+            same_type = sorted(t for t, m in self.topic_types.items() if m == msgtype
+                               and t != name)
+            if found is None:
+                if kind == "measured_torque":
+                    continue
+                base = name.rsplit("/", 1)[-1]
+                nested = [t for t in self.topic_types if t.rsplit("/", 1)[-1] == base]
+                hint = ""
+                if nested:
+                    hint = (f"; {', '.join(nested)} is recorded under a namespace: pass "
+                            f"{KIND_FLAGS[kind]} {nested[0]}")
+                elif same_type:
+                    hint = (f"; topics of type {msgtype}: {', '.join(same_type)} (pass "
+                            f"{KIND_FLAGS[kind]} TOPIC)")
+                raise BagError(f"{self._files()}: no topic {name} ({msgtype}); the bag holds: "
+                               f"{self.describe()}{hint}")
+            if found != msgtype:
+                hint = ""
+                if same_type:
+                    hint = (f"; topics of type {msgtype}: {', '.join(same_type)} (pass "
+                            f"{KIND_FLAGS[kind]} TOPIC)")
+                raise BagError(f"{self._files()}: topic {name} has type {found}, expected "
+                               f"{msgtype}; the bag holds: {self.describe()}{hint}")
+            resolved[name] = kind
+        return resolved
+
+    def __enter__(self):
+        """Return self."""
+        return self
+
+    def __exit__(self, *exc):
+        """Close the bag."""
+        self.close()
+
+    def close(self):
+        """Close the bag (idempotent)."""
+        reader, self._reader = getattr(self, "_reader", None), None
+        if reader is not None:
+            try:
+                reader.close()
+            except Exception:    # closing a damaged storage may fail again: already reported
+                pass
+
+    def total_messages(self):
+        """Messages metadata.yaml announces (for a progress bar only: it may be wrong)."""
+        return sum(c.msgcount for c in self.connections)
+
+    def messages(self, all_topics=True):
+        """
+        Yield (connection, log time [ns], raw CDR bytes, Event or None) in log order.
+
+        The Event is decoded for the resolved input topics; other topics (read only with
+        ``all_topics``) are passed through undecoded.
+        """
+        conns = self.connections if all_topics else [
+            c for c in self.connections if c.topic in self.resolved]
+        if not conns:
+            return
+        it = self._reader.messages(connections=conns)
+        while True:
+            try:
+                item = next(it)
+            except StopIteration:
+                return
+            except Exception as exc:  # a truncated or corrupt storage file, at any depth
+                raise BagError(f"{self._files()}: damaged bag: reading failed after "
+                               f"{sum(self.counts.values())} messages ({_why(exc)})") from None
+            conn, log_ns, raw = item
+            self.counts[conn.topic] += 1
+            kind = self.resolved.get(conn.topic)
+            event = None
+            if kind is not None:
+                event = self._decode(kind, conn, log_ns, raw)
+            yield conn, log_ns, raw, event
+
+    def _decode(self, kind, conn, log_ns, raw):
+        try:
+            msg = self._store.deserialize_cdr(raw, conn.msgtype)
+            if kind == "nut_state":
+                names = tuple(msg.name)
+                if len(self.joint_names) < MAX_JOINT_NAMES_KEPT or names in self.joint_names:
+                    self.joint_names[names] += 1
+                return Event(kind, _stamp(msg.header), names,
+                             tuple(float(x) for x in msg.position),
+                             tuple(float(x) for x in msg.velocity),
+                             stamp_ns=_stamp_ns(msg.header))
+            value = msg.wrench.force.z if kind == "axial_load" else msg.wrench.torque.z
+            return Event(kind, _stamp(msg.header), value=float(value),
+                         stamp_ns=_stamp_ns(msg.header))
+        except Exception as exc:      # rosbags' CDR decoder raises several types
+            raise BagError(f"{self._files()}: damaged message {self.counts[conn.topic]} on "
+                           f"{conn.topic} (log time {log_ns} ns): cannot decode it as "
+                           f"{conn.msgtype} ({_why(exc)})") from None
+
+
+def _why(exc):
+    text = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {text[0]}" if text else type(exc).__name__
+
+
 def iter_events(path, topics=Topics()):
     """
-    Return (an iterator of the events in log order, messages per topic) of a rosbag2 directory.
+    Return (an iterator of the input events in log order, messages read per topic).
 
     The bag is read as the iterator is consumed, so a long recording is never in memory as
-    events (a 10-minute 1 kHz bag is 1.8 million of them); it is closed when the iterator is
-    exhausted.  Topics not in ``topics`` are counted (from the metadata) but not decoded.
-    Raises FileNotFoundError or ValueError with the path when the bag cannot be opened.
+    events, and closed when it is exhausted; the counts (a Counter of the messages actually
+    read) fill as it goes.  Raises FileNotFoundError or BagError (a ValueError) naming the file
+    when the bag cannot be opened; reading a damaged one raises BagError.
     """
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"{path}: no such bag")
-    store = _typestore()
-    wanted = {_bare(topics.nut_state): "nut_state", _bare(topics.axial_load): "axial_load",
-              _bare(topics.measured_torque): "measured_torque"}
-    counts = {}
-    try:
-        reader = Reader(path)
-        reader.open()
-    except Exception as exc:     # rosbags raises its own error types per storage
-        raise ValueError(f"{path}: not a readable rosbag2 ({exc})") from exc
-    for conn in reader.connections:
-        counts[conn.topic] = counts.get(conn.topic, 0) + conn.msgcount
-    conns = [c for c in reader.connections if _bare(c.topic) in wanted]
+    bag = BagInput(path, topics)
 
     def events():
         try:
-            for conn, _, raw in reader.messages(connections=conns):
-                kind = wanted[_bare(conn.topic)]
-                msg = store.deserialize_cdr(raw, conn.msgtype)
-                if kind == "nut_state":
-                    yield Event(kind, _stamp(msg.header), tuple(msg.name),
-                                tuple(float(x) for x in msg.position),
-                                tuple(float(x) for x in msg.velocity))
-                elif kind == "axial_load":
-                    yield Event(kind, _stamp(msg.header), value=float(msg.wrench.force.z))
-                else:
-                    yield Event(kind, _stamp(msg.header), value=float(msg.wrench.torque.z))
+            for _, _, _, ev in bag.messages(all_topics=False):
+                yield ev
         finally:
-            reader.close()
-    return events(), counts
+            bag.close()
+    return events(), bag.counts
 
 
 def read_events(path, topics=Topics()):
     """
-    Return (events in log order, messages per topic) of a rosbag2 directory.
+    Return (events in log order, messages read per topic) of a rosbag2.
 
-    Topics not in ``topics`` are counted but not decoded.  Raises FileNotFoundError or
-    ValueError with the path when the bag cannot be read.
+    Only the input topics are read.  Raises FileNotFoundError or BagError (a ValueError)
+    naming the file when the bag cannot be used.
     """
     events, counts = iter_events(path, topics)
-    return list(events), counts
+    return list(events), dict(counts)
 
 
 def _header(store, stamp_s):
@@ -147,36 +476,104 @@ def _wrench(store, stamp_s, force_z=0.0, torque_z=0.0):
     return store.types[WRENCH_STAMPED](header=_header(store, stamp_s), wrench=w)
 
 
+STORAGES = ("sqlite3", "mcap")
+
+
+class BagWriter:
+    """
+    A rosbag2 written message by message (nothing is held back but the storage's chunk).
+
+    Connections carry their message definitions, so a reader without our packages can
+    decode every topic.  Use as a context manager.
+    """
+
+    def __init__(self, path, store=None, storage="mcap"):
+        """Create the bag directory ``path`` (it must not exist)."""
+        from rosbags.rosbag2 import StoragePlugin, Writer
+        if storage not in STORAGES:
+            raise ValueError(f"storage: must be 'sqlite3' or 'mcap', got {storage!r}")
+        plugin = {"sqlite3": StoragePlugin.SQLITE3, "mcap": StoragePlugin.MCAP}[storage]
+        self.store = store or _typestore()
+        self.path = Path(path)
+        self._writer = Writer(self.path, version=9, storage_plugin=plugin)
+        self._writer.open()
+        self._conns = {}
+        self.not_copied = {}
+
+    def connection(self, topic, msgtype):
+        """Return the output connection of ``topic`` (added on first use)."""
+        key = (topic, msgtype)
+        if key not in self._conns:
+            self._conns[key] = self._writer.add_connection(topic, msgtype,
+                                                           typestore=self.store)
+        return self._conns[key]
+
+    def copy_connection(self, conn):
+        """
+        Return the output connection for input connection ``conn``, or None.
+
+        The definition comes from our typestore when it knows the type, else from the input
+        bag; a topic with neither is not copied (listed in ``not_copied``).
+        """
+        key = (conn.topic, conn.msgtype)
+        if key in self._conns or key in self.not_copied:
+            return self._conns.get(key)
+        qos = list(getattr(conn.ext, "offered_qos_profiles", []) or [])
+        from rosbags.typesys import get_types_from_msg
+        try:
+            if conn.msgtype not in self.store.types and conn.msgdef.data:
+                self.store.register(get_types_from_msg(conn.msgdef.data, conn.msgtype))
+            self._conns[key] = self._writer.add_connection(
+                conn.topic, conn.msgtype, typestore=self.store, offered_qos_profiles=qos)
+        except Exception as exc:     # an unknown type without a usable definition
+            self.not_copied[key] = _why(exc)
+            return None
+        return self._conns[key]
+
+    def write_raw(self, conn, log_ns, raw):
+        """Write already serialised CDR bytes."""
+        self._writer.write(conn, int(log_ns), raw)
+
+    def write(self, conn, log_ns, msg):
+        """Serialise ``msg`` with rosbags' CDR (rclpy's may append junk bytes) and write it."""
+        self._writer.write(conn, int(log_ns), self.store.serialize_cdr(msg, conn.msgtype))
+
+    def close(self):
+        """Finish the bag (writes metadata.yaml)."""
+        writer, self._writer = self._writer, None
+        if writer is not None:
+            writer.close()
+
+    def __enter__(self):
+        """Return self."""
+        return self
+
+    def __exit__(self, *exc):
+        """Finish the bag."""
+        self.close()
+
+
 def write_events(path, events, topics=Topics(), storage="sqlite3", log_times_s=None):
     """
-    Write events as a rosbag2 (storage 'sqlite3' or 'mcap'); log time = stamp unless given.
+    Write events (any iterable) as a rosbag2 (storage 'sqlite3' or 'mcap').
 
-    Serialised with rosbags' own CDR (rclpy's serializer may append junk bytes).
+    Log time = stamp unless ``log_times_s`` is given.  Serialised with rosbags' own CDR.
     """
-    plugin = {"sqlite3": StoragePlugin.SQLITE3, "mcap": StoragePlugin.MCAP}.get(storage)
-    if plugin is None:
+    if storage not in STORAGES:
         raise ValueError(f"storage: must be 'sqlite3' or 'mcap', got {storage!r}")
-    store = _typestore()
-    with Writer(Path(path), version=9, storage_plugin=plugin) as writer:
-        conns = {
-            "nut_state": writer.add_connection("/" + _bare(topics.nut_state), JOINT_STATE,
-                                               typestore=store),
-            "axial_load": writer.add_connection("/" + _bare(topics.axial_load),
-                                                WRENCH_STAMPED, typestore=store),
-            "measured_torque": writer.add_connection("/" + _bare(topics.measured_torque),
-                                                     WRENCH_STAMPED, typestore=store),
-        }
+    with BagWriter(path, storage=storage) as out:
+        store = out.store
+        conns = {kind: out.connection(topics.absolute(kind), msgtype)
+                 for kind, msgtype in KIND_TYPES.items()}
         for i, ev in enumerate(events):
             if ev.kind == "nut_state":
                 msg = store.types[JOINT_STATE](
                     header=_header(store, ev.stamp_s), name=list(ev.names),
                     position=np.asarray(ev.positions, float),
                     velocity=np.asarray(ev.velocities, float), effort=np.zeros(0))
-                msgtype = JOINT_STATE
             elif ev.kind == "axial_load":
-                msg, msgtype = _wrench(store, ev.stamp_s, force_z=ev.value), WRENCH_STAMPED
+                msg = _wrench(store, ev.stamp_s, force_z=ev.value)
             else:
-                msg, msgtype = _wrench(store, ev.stamp_s, torque_z=ev.value), WRENCH_STAMPED
+                msg = _wrench(store, ev.stamp_s, torque_z=ev.value)
             log_t = ev.stamp_s if log_times_s is None else log_times_s[i]
-            writer.write(conns[ev.kind], int(round(log_t * 1e9)),
-                         store.serialize_cdr(msg, msgtype))
+            out.write(conns[ev.kind], int(round(log_t * 1e9)), msg)

@@ -151,6 +151,7 @@ def _run_reproduce(args):
 
 
 def _add_replay_parser(sub):
+    from bb_friction_ros.bags import Topics
     p = sub.add_parser("replay", help="run a rosbag2 recording (sqlite3 or mcap) through the "
                        "live node's model path, offline")
     p.add_argument("bag", help="rosbag2 directory")
@@ -159,9 +160,10 @@ def _add_replay_parser(sub):
                    "model_rate_hz, max_axial_load_n (and config_file) are taken from it")
     p.add_argument("--nut-joint", help="joint name in nut_state (overrides the params file)")
     p.add_argument("--model-rate-hz", type=float, help="model steps per second of input time")
-    p.add_argument("--measured-topic", default="measured_torque",
-                   help="measured torque topic (geometry_msgs/WrenchStamped torque.z)")
+    Topics.add_arguments(p)
     p.add_argument("--out", required=True, help="output directory")
+    p.add_argument("--no-bag", action="store_true", help="write no output bag (DIR/bag/), "
+                   "only the CSV, summary and plots")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_run_replay)
 
@@ -189,12 +191,13 @@ def _run_replay(args):
     settings = _replay_settings(args)
     try:
         summary = replay(args.bag, args.out, config=args.config, settings=settings,
-                         topics=Topics(measured_torque=args.measured_topic),
-                         progress=not args.no_progress)
-    except (FileNotFoundError, ValueError) as exc:
+                         topics=Topics.from_args(args), progress=not args.no_progress,
+                         write_bag=not args.no_bag)
+    except (FileNotFoundError, ValueError) as exc:   # BagError, NothingAccepted included
         print(f"bb-friction replay: {exc}", file=sys.stderr)
         return 2
-    print(json.dumps({k: summary[k] for k in ("samples", "rejected", "speed_vs_realtime")
+    print(json.dumps({k: summary[k] for k in ("samples", "rejected", "nonconverged_steps",
+                                              "speed_vs_realtime")
                       + (("rmse_nm",) if "rmse_nm" in summary else ())}))
     print(f"outputs in {args.out}")
     return 0

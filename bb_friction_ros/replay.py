@@ -1,26 +1,55 @@
 """
 ``bb-friction replay``: a recording through exactly the live node's model path, offline.
 
-Events are fed in log order to the same ``InputAssembler`` and ``ModelRunner`` the node uses,
-so the predictions equal the node's for the same messages (tested).  Writes
-``prediction.csv``, ``summary.json`` and PNG plots.
+Messages are fed in log order to the same ``InputAssembler`` and ``ModelRunner`` the node
+uses, so the predictions equal the node's for the same messages (tested).  The bag is
+streamed: each message is read, answered and written out before the next, so memory does not
+grow with the recording.  Writes ``prediction.csv``, ``summary.json``, PNG plots and ``bag/``:
+a rosbag2 (mcap) with the input topics copied and the node's output topics, for Foxglove,
+PlotJuggler or ``ros2 bag play``.
 """
 
+from array import array
 import csv
 import json
+import math
 from pathlib import Path
+import shutil
 import sys
 import time
 
 import numpy as np
 
-from bb_friction_ros.bags import measured_torque_at, read_events, Topics
+from bb_friction_ros.bags import (BagError, BagInput, BagWriter, friction_typestore,
+                                  MeasuredAligner, stamp_ns, Topics)
 from bb_friction_ros.config import bundled_config
 from bb_friction_ros.node_parameters import NodeParameters
 from bb_friction_ros.runner import build_runner, InputAssembler, InputError
 
 CSV_COLUMNS = ["t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n", "torque_pred_nm",
                "torque_b2b_nm"]
+# Output topics and types, as friction_node publishes them (node.py).
+PREDICTION_TOPIC = ("/friction/prediction", "bb_friction_msgs/msg/FrictionPrediction")
+GROUPS_TOPIC = ("/friction/contact_groups", "bb_friction_msgs/msg/ContactGroupStatus")
+FEEDFORWARD_TOPIC = ("/friction/feedforward", "std_msgs/msg/Float64MultiArray")
+OUTPUT_TOPICS = (PREDICTION_TOPIC, GROUPS_TOPIC, FEEDFORWARD_TOPIC)
+
+
+class NothingAccepted(BagError):
+    """A replay in which no nut_state sample was accepted (the message says why)."""
+
+
+def feed_event(ev, runner, assembler):
+    """Feed one event; return its Prediction, or None (a load, a measurement, a rejection)."""
+    try:
+        if ev.kind == "axial_load":
+            assembler.on_axial_load(ev.value)
+        elif ev.kind == "nut_state":
+            sample = assembler.on_nut_state(ev.stamp_s, ev.names, ev.positions, ev.velocities)
+            return runner.process(sample)
+    except InputError as err:
+        runner.reject(err.reason, nut_state=ev.kind == "nut_state")
+    return None
 
 
 def run_events(events, runner, assembler, progress=False):
@@ -30,115 +59,360 @@ def run_events(events, runner, assembler, progress=False):
     Rejected inputs are counted in ``runner.stats`` (``rejected`` by reason), as the node
     counts them.
     """
-    preds = []
     iterator = events
     if progress:
         from tqdm import tqdm
         iterator = tqdm(events, desc="replay", unit="msg", file=sys.stderr, mininterval=0.5)
+    preds = []
     for ev in iterator:
-        try:
-            if ev.kind == "axial_load":
-                assembler.on_axial_load(ev.value)
-            elif ev.kind == "nut_state":
-                sample = assembler.on_nut_state(ev.stamp_s, ev.names, ev.positions,
-                                                ev.velocities)
-                pred = runner.process(sample)
-                if pred is not None:
-                    preds.append(pred)
-        except InputError as err:
-            runner.reject(err.reason, nut_state=ev.kind == "nut_state")
+        pred = feed_event(ev, runner, assembler)
+        if pred is not None:
+            preds.append(pred)
     return preds
 
 
-def replay(bag, out, config=None, settings=NodeParameters(), topics=Topics(), progress=True):
+class _Series:
+    """
+    The plotted columns, spilled to a temporary file as the bag streams (constant memory).
+
+    A 10-minute 1 kHz bag has 600k samples; kept as Python objects they took most of the
+    1.2 GB replay peaked at (issue 13 finding 26), and even packed they would be 38 MB.
+    """
+
+    COLUMNS = ("t", "torque", "b2b", "speed", "load", "groups", "largest", "meas")
+    BUFFER_ROWS = 8192
+
+    def __init__(self, measured):
+        import tempfile
+        self.measured = measured
+        self._file = tempfile.TemporaryFile()
+        self._buf = array("d")
+        self._pending = []      # rows waiting for their measurement
+        self.rows = 0
+
+    def add(self, pred):
+        """Append one prediction (its measurement comes later through ``measure``)."""
+        row = (pred.stamp_s, pred.torque_total_nm, pred.torque_b2b_nm,
+               pred.nut_velocity_rad_s, pred.axial_load_n, len(pred.groups),
+               max((len(g[0]) for g in pred.groups), default=0))
+        if self.measured:
+            return row
+        self._append(row + (math.nan,))
+        return None
+
+    def measure(self, row, meas):
+        """Append a row held back by ``add`` with its measured torque."""
+        self._append(row + (meas,))
+
+    def _append(self, row):
+        self._buf.extend(row)
+        self.rows += 1
+        if len(self._buf) >= self.BUFFER_ROWS * len(self.COLUMNS):
+            self._buf.tofile(self._file)
+            del self._buf[:]
+
+    def chunks(self):
+        """Yield the rows written so far as (n, 8) float64 arrays, a buffer at a time."""
+        self._buf.tofile(self._file)
+        del self._buf[:]
+        self._file.flush()
+        self._file.seek(0)
+        width = len(self.COLUMNS)
+        while True:
+            block = np.fromfile(self._file, dtype=np.float64,
+                                count=self.BUFFER_ROWS * width)
+            if block.size == 0:
+                return
+            yield block.reshape(-1, width)
+
+    def decimated(self, buckets=2000):
+        """
+        Return the columns min/max-decimated to ``buckets`` (x repeated twice per bucket).
+
+        At the figure's resolution a min/max envelope draws what every point would, from a
+        bounded number of points.
+        """
+        per = max(1, math.ceil(self.rows / buckets))
+        if per == 1:
+            data = np.concatenate(list(self.chunks()) or [np.zeros((0, 8))])
+            return {k: data[:, i] for i, k in enumerate(self.COLUMNS)}
+        lo, hi, xs = [], [], []
+        carry = np.zeros((0, len(self.COLUMNS)))
+        for block in self.chunks():
+            block = np.concatenate([carry, block])
+            n = (len(block) // per) * per
+            carry = block[n:].copy()
+            if n:
+                b = block[:n].reshape(-1, per, len(self.COLUMNS))
+                lo.append(np.nanmin(b, axis=1) if self.measured else b.min(axis=1))
+                hi.append(np.nanmax(b, axis=1) if self.measured else b.max(axis=1))
+                xs.append(b[:, 0, 0].copy())     # a view would keep every block alive
+        if len(carry):
+            lo.append(np.nanmin(carry, axis=0)[None] if self.measured else carry.min(0)[None])
+            hi.append(np.nanmax(carry, axis=0)[None] if self.measured else carry.max(0)[None])
+            xs.append(carry[:1, 0])
+        lo, hi, x = np.concatenate(lo), np.concatenate(hi), np.concatenate(xs)
+        out = {k: np.column_stack([lo[:, i], hi[:, i]]).ravel()
+               for i, k in enumerate(self.COLUMNS)}
+        out["t"] = np.repeat(x, 2)
+        return out
+
+    def close(self):
+        self._file.close()
+
+
+class _OutputBag:
+    """friction_node's output topics written beside the copied input, message by message."""
+
+    def __init__(self, path, inputs):
+        if path.exists():
+            shutil.rmtree(path)   # our own output of an earlier run into the same --out
+        self.store = friction_typestore()
+        self.bag = BagWriter(path, self.store, storage="mcap")
+        self.conns = {topic: self.bag.connection(topic, msgtype)
+                      for topic, msgtype in OUTPUT_TOPICS}
+        self.copies = {}
+        for conn in inputs:
+            if conn.topic in self.conns:
+                # a recording of a live friction_node: the replay's answers take its place
+                self.bag.not_copied[(conn.topic, conn.msgtype)] = "replaced by replay's output"
+                self.copies[conn.id] = None
+            else:
+                self.copies[conn.id] = self.bag.copy_connection(conn)
+        self._last_groups = None
+        self.written = {topic: 0 for topic, _ in OUTPUT_TOPICS}
+
+    def copy(self, conn, log_ns, raw):
+        out = self.copies.get(conn.id)
+        if out is not None:
+            self.bag.write_raw(out, log_ns, raw)
+
+    def publish(self, pred, stamp, latency_s):
+        """Write what the node publishes for one prediction, logged at the input stamp."""
+        t = self.store.types
+        sec, nanosec = divmod(stamp, 1_000_000_000)
+        header = t["std_msgs/msg/Header"](
+            stamp=t["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec), frame_id="")
+        msg = t[PREDICTION_TOPIC[1]](
+            header=header, nut_angle_rad=pred.nut_angle_rad,
+            nut_velocity_rad_s=pred.nut_velocity_rad_s, axial_load_n=pred.axial_load_n,
+            torque_total_nm=pred.torque_total_nm, torque_b2g_nm=pred.torque_b2g_nm,
+            torque_b2b_nm=pred.torque_b2b_nm, torque_empirical_nm=pred.torque_empirical_nm,
+            converged=bool(pred.converged), model_latency_s=latency_s,
+            model_age_s=pred.model_age_s, n_groups=len(pred.groups))
+        self._write(PREDICTION_TOPIC[0], stamp, msg)
+        layout = t["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0)
+        # the runner's safe value (held or 0 after a step that did not converge), as the node
+        self._write(FEEDFORWARD_TOPIC[0], stamp, t[FEEDFORWARD_TOPIC[1]](
+            layout=layout, data=np.array([pred.feedforward_nm], dtype=np.float64)))
+        if pred.groups != self._last_groups:
+            # The node publishes groups on change (and repeats them on a wall-clock timer,
+            # which carries no new information and no input stamp: not reproduced here).
+            self._last_groups = pred.groups
+            group = t["bb_friction_msgs/msg/ContactGroup"]
+            self._write(GROUPS_TOPIC[0], stamp, t[GROUPS_TOPIC[1]](
+                header=header, nut_angle_rad=pred.nut_angle_rad, n_balls=pred.n_balls,
+                groups=[group(ball_ids=np.array(ids, dtype=np.uint32),
+                              b2b_forces_n=np.array(forces, dtype=np.float64))
+                        for ids, forces in pred.groups]))
+
+    def _write(self, topic, stamp, msg):
+        self.bag.write(self.conns[topic], stamp, msg)
+        self.written[topic] += 1
+
+    def close(self):
+        self.bag.close()
+
+
+def _row(pred, empirical):
+    row = [f"{pred.stamp_s:.9f}", repr(pred.nut_angle_rad), repr(pred.nut_velocity_rad_s),
+           repr(pred.axial_load_n), repr(pred.torque_total_nm), repr(pred.torque_b2b_nm)]
+    return row, ([repr(pred.torque_empirical_nm)] if empirical else []) + \
+        [str(int(bool(pred.converged)))]
+
+
+def csv_header(measured, empirical):
+    """
+    Return the prediction.csv columns.
+
+    The first six never move; ``torque_meas_nm`` follows when the bag records a measured
+    torque, ``torque_empirical_nm`` when the model carries fitted terms, and ``converged``
+    (1/0: every solve behind the value converged) is last.
+    """
+    return CSV_COLUMNS + (["torque_meas_nm"] if measured else []) + \
+        (["torque_empirical_nm"] if empirical else []) + ["converged"]
+
+
+def replay(bag, out, config=None, settings=NodeParameters(), topics=Topics(), progress=True,
+           write_bag=True):
     """
     Replay ``bag`` into directory ``out``; return the summary dict.
 
     ``settings``: the node's parameters (``nut_joint``, ``model_rate_hz`` and
     ``max_axial_load_n`` shape the predictions); ``config`` is the model file (default:
     ``settings.config_file``, else the bundled ``config/ball_screw.yaml``).
+
+    Raises FileNotFoundError or BagError (a ValueError) naming the file for a bag that
+    cannot be used, and NothingAccepted when no nut_state sample was accepted (the summary
+    is written first).
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    events, counts = read_events(bag, topics)
-    runner = build_runner(config or settings.config_file or bundled_config("ball_screw.yaml"),
-                          settings.model_rate_hz)
-    assembler = InputAssembler(settings.nut_joint, settings.max_axial_load_n)
-    t0 = time.perf_counter()
-    preds = run_events(events, runner, assembler, progress=progress)
-    wall = time.perf_counter() - t0
-
-    t = np.array([p.stamp_s for p in preds])
-    pred = np.array([p.torque_total_nm for p in preds])
-    meas = measured_torque_at(events, t) if preds else None
-    write_prediction_csv(out / "prediction.csv", preds, meas)
-    span = float(t.max() - t.min()) if t.size > 1 else 0.0
-    summary = {
-        "bag": str(bag),
-        "messages": counts,
-        "samples": len(preds),
-        "rejected": dict(runner.stats.rejected),
-        "resets": runner.stats.resets,
-        "model_steps": runner.stats.model_steps,
-        "nonconverged_steps": runner.stats.nonconverged_steps,
-        "duration_s": span,
-        "wall_s": wall,
-        "speed_vs_realtime": span / wall if wall > 0 else None,
-        "model_rate_hz": settings.model_rate_hz,
-    }
-    if meas is not None:
-        ok = np.isfinite(meas)
-        summary["rmse_nm"] = float(np.sqrt(np.mean((meas[ok] - pred[ok]) ** 2))) \
-            if ok.any() else None
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
-    if preds:
-        plot_replay(out, preds, meas)
+    with BagInput(bag, topics) as src:
+        runner = build_runner(config or settings.config_file
+                              or bundled_config("ball_screw.yaml"), settings.model_rate_hz)
+        assembler = InputAssembler(settings.nut_joint, settings.max_axial_load_n)
+        # metadata's count decides only whether the column exists: an empty measured topic
+        # would hold every row back waiting for a measurement
+        measured = any(c.topic == topics.absolute("measured_torque") and c.msgcount
+                       for c in src.connections if c.topic in src.resolved)
+        empirical = runner.terms is not None
+        outbag = _OutputBag(out / "bag", src.connections) if write_bag else None
+        try:
+            summary = _stream(src, runner, assembler, out, measured, empirical, outbag,
+                              progress)
+        finally:
+            if outbag is not None:
+                outbag.close()
+        summary.update(bag=str(bag), model_rate_hz=settings.model_rate_hz,
+                       topics=dict(src.topic_types))
+        if outbag is not None:
+            summary["output_bag"] = {"path": str(out / "bag"), "written": outbag.written,
+                                     "not_copied": {t: why for (t, _), why
+                                                    in outbag.bag.not_copied.items()}}
+        (out / "summary.json").write_text(json.dumps(summary, indent=2))
+        if summary["samples"] == 0:
+            raise NothingAccepted(nothing_accepted_message(src, runner.stats, settings))
     return summary
 
 
-def write_prediction_csv(path, preds, meas=None):
-    """
-    Write one row per nut-state sample.
-
-    ``torque_meas_nm`` is added when measured, ``torque_empirical_nm`` (last) when the model
-    carries fitted terms; the first six columns never move.
-    """
-    empirical = any(p.torque_empirical_nm != 0.0 for p in preds)
-    with open(path, "w", newline="") as fh:
+def _stream(src, runner, assembler, out, measured, empirical, outbag, progress):
+    series = _Series(measured)
+    aligner = MeasuredAligner() if measured else None
+    sq_err, n_err = 0.0, 0
+    t_min, t_max = math.inf, -math.inf
+    bar = None
+    if progress:
+        from tqdm import tqdm
+        bar = tqdm(total=src.total_messages(), desc="replay", unit="msg", file=sys.stderr,
+                   mininterval=0.5)
+    t0 = time.perf_counter()
+    with open(out / "prediction.csv", "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(CSV_COLUMNS + (["torque_meas_nm"] if meas is not None else [])
-                   + (["torque_empirical_nm"] if empirical else []))
-        for i, p in enumerate(preds):
-            row = [f"{p.stamp_s:.9f}", repr(p.nut_angle_rad), repr(p.nut_velocity_rad_s),
-                   repr(p.axial_load_n), repr(p.torque_total_nm), repr(p.torque_b2b_nm)]
-            if meas is not None:
-                row.append(repr(float(meas[i])))
-            if empirical:
-                row.append(repr(p.torque_empirical_nm))
-            w.writerow(row)
+        w.writerow(csv_header(measured, empirical))
+
+        def emit(done):
+            nonlocal sq_err, n_err
+            for (head, tail, pred_nm, row), meas in done:
+                w.writerow(head + [repr(float(meas))] + tail)
+                series.measure(row, meas)
+                if math.isfinite(meas):
+                    sq_err += (meas - pred_nm) ** 2
+                    n_err += 1
+
+        for conn, log_ns, raw, ev in src.messages(all_topics=outbag is not None):
+            if bar is not None:
+                bar.update()
+            if outbag is not None:
+                outbag.copy(conn, log_ns, raw)
+            if ev is None:
+                continue
+            if ev.kind == "measured_torque":
+                emit(aligner.add_measured(ev.stamp_s, ev.value))
+                continue
+            t_in = time.perf_counter()
+            pred = feed_event(ev, runner, assembler)
+            if pred is None:
+                continue
+            t_min, t_max = min(t_min, pred.stamp_s), max(t_max, pred.stamp_s)
+            if outbag is not None:
+                outbag.publish(pred, stamp_ns(ev), time.perf_counter() - t_in)
+            row = series.add(pred)
+            head, tail = _row(pred, empirical)
+            if aligner is None:
+                w.writerow(head + tail)
+            else:
+                emit(aligner.add_prediction(pred.stamp_s,
+                                            (head, tail, pred.torque_total_nm, row)))
+        if aligner is not None:
+            emit(aligner.finish())
+    wall = time.perf_counter() - t0
+    if bar is not None:
+        bar.close()
+    stats = runner.stats
+    span = (t_max - t_min) if series.rows > 1 else 0.0
+    summary = {
+        "messages": dict(src.counts),
+        "samples": series.rows,
+        "rejected": dict(stats.rejected),
+        "resets": stats.resets,
+        "model_steps": stats.model_steps,
+        "nonconverged_steps": stats.nonconverged_steps,
+        "duration_s": span,
+        "wall_s": wall,
+        "speed_vs_realtime": span / wall if wall > 0 else None,
+    }
+    if measured:
+        summary["rmse_nm"] = math.sqrt(sq_err / n_err) if n_err else None
+    if series.rows:
+        plot_replay(out, series)
+    series.close()
+    return summary
 
 
-def plot_replay(out, preds, meas):
-    """Predicted vs measured torque, and the B2B groups over time."""
+def nothing_accepted_message(src, stats, settings):
+    """Say why no sample was accepted: reasons with counts, what the bag holds, the fix."""
+    nut = src.topics.absolute("nut_state")
+    load = src.topics.absolute("axial_load")
+    lines = [f"{src.path}: no nut_state sample was accepted, so there is nothing to predict."]
+    rejected = ", ".join(f"{r} {n}" for r, n in stats.rejected.most_common()) or "none"
+    lines.append(f"  rejected (reason count): {rejected}")
+    lines.append("  messages read: " + (", ".join(f"{t} {n}" for t, n in
+                                                  sorted(src.counts.items())) or "none"))
+    lines.append(f"  topics in the bag: {src.describe()}")
+    names = sorted({n for group in src.joint_names for n in group})
+    lines.append(f"  joint names seen on {nut}: {names or 'none'} (nut_joint is "
+                 f"{settings.nut_joint!r})")
+    hints = []
+    if src.counts[nut] == 0:
+        hints.append(f"{nut} has no messages")
+    if stats.rejected.get("wrong_joint") and names:
+        hints.append(f"the nut joint is named differently: pass --nut-joint {names[0]}"
+                     + (f" (or one of {names})" if len(names) > 1 else ""))
+    if stats.rejected.get("no_load_yet"):
+        hints.append(f"{load} has no messages" if src.counts[load] == 0 else
+                     f"no valid load arrived on {load} (see its rejections)")
+    if stats.rejected.get("absurd_load"):
+        hints.append(f"loads exceed max_axial_load_n = {settings.max_axial_load_n:g} N "
+                     "(set it in --params-file)")
+    if stats.rejected.get("non_finite") or stats.rejected.get("empty") \
+            or stats.rejected.get("missing_velocity"):
+        hints.append("the messages carry no finite position, velocity or load")
+    if hints:
+        lines.append("  hint: " + "; ".join(hints))
+    return "\n".join(lines)
+
+
+def plot_replay(out, series):
+    """Predicted vs measured torque, and the B2B groups over time (min/max decimated)."""
     from matplotlib.figure import Figure
-    t = np.array([p.stamp_s for p in preds])
-    t = t - t[0]
+    c = series.decimated()
+    t = c["t"] - c["t"][0]
     fig = Figure(figsize=(10, 8))
     ax = fig.subplots(3, 1, sharex=True)
-    if meas is not None:
-        ax[0].plot(t, meas, lw=0.6, color="0.5", label="measured")
-    ax[0].plot(t, [p.torque_total_nm for p in preds], lw=1.0, label="predicted (total)")
-    ax[0].plot(t, [p.torque_b2b_nm for p in preds], lw=1.0, label="predicted B2B part")
+    if series.measured:
+        ax[0].plot(t, c["meas"], lw=0.6, color="0.5", label="measured")
+    ax[0].plot(t, c["torque"], lw=1.0, label="predicted (total)")
+    ax[0].plot(t, c["b2b"], lw=1.0, label="predicted B2B part")
     ax[0].set_ylabel("friction torque [N m]")
     ax[0].legend(fontsize=8)
-    ax[1].plot(t, [p.nut_velocity_rad_s for p in preds], lw=0.8)
+    ax[1].plot(t, c["speed"], lw=0.8)
     ax[1].set_ylabel("nut speed [rad/s]")
     ax2 = ax[1].twinx()
-    ax2.plot(t, [p.axial_load_n for p in preds], lw=0.8, color="C3")
+    ax2.plot(t, c["load"], lw=0.8, color="C3")
     ax2.set_ylabel("axial load [N]", color="C3")
-    ax[2].step(t, [len(p.groups) for p in preds], where="post", label="groups")
-    ax[2].step(t, [max((len(g[0]) for g in p.groups), default=0) for p in preds],
-               where="post", label="largest group (balls)")
+    ax[2].step(t, c["groups"], where="post", label="groups")
+    ax[2].step(t, c["largest"], where="post", label="largest group (balls)")
     ax[2].set_ylabel("B2B contact groups")
     ax[2].set_xlabel("time [s]")
     ax[2].legend(fontsize=8)

@@ -19,7 +19,7 @@ LAYERS = {
     1: {"config", "contact", "paper", ""},            # "": the package's __init__
     2: {"linear_bearing", "ball_screw", "empirical_terms", "model_file"},
     3: {"runner", "bags", "node_parameters", "feedforward"},
-    4: {"replay", "node", "node_entry", "testing", "playback", "trajectories"},
+    4: {"replay", "node", "node_entry", "testing", "trajectories"},
     5: {"discrepancy", "sweep", "demo", "reproduce"},
     6: {"cli"},
 }

@@ -1,8 +1,9 @@
 """
 The live friction_node, in-process under rclpy executors (no launch, no ros2 CLI).
 
-Inputs are paced so that the model keeps up; then the node must give exactly the replay's
-predictions (same runner, same schedule).
+Driven through the public harness ``bb_friction_ros.testing`` (so it cannot rot).  Inputs are
+paced so that the model keeps up; then the node must give exactly the replay's predictions
+(same runner, same schedule).
 """
 
 import dataclasses
@@ -13,10 +14,11 @@ from rclpy.parameter import Parameter
 
 from bb_friction_ros.bags import Event
 from bb_friction_ros.config import bundled_config, ConfigError
-from bb_friction_ros.node import FrictionNode, main, play_through_node
+from bb_friction_ros.node import FrictionNode, main
 from bb_friction_ros.node_parameters import NodeParameters
 from bb_friction_ros.replay import run_events
 from bb_friction_ros.runner import build_runner, InputAssembler
+from bb_friction_ros.testing import console_script, play_through_node
 from invariants import check_prediction
 from recordings import short_recording
 
@@ -137,18 +139,20 @@ def test_bad_ball_screw_yaml_refuses_to_start_naming_the_key(tmp_path, capsys):
 
 
 def test_console_script_with_bundled_params_file(ros_context, repo_root):
-    """friction_node --ros-args --params-file config/friction_node.yaml answers inputs."""
-    import os
+    """
+    friction_node --ros-args --params-file config/friction_node.yaml answers inputs.
+
+    The script is found wherever the package is installed: beside the venv's python, or in
+    lib/bb_friction_ros of a colcon workspace (colcon test).
+    """
     import subprocess
-    import sys
     import time
     from bb_friction_msgs.msg import FrictionPrediction
     from geometry_msgs.msg import WrenchStamped
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
     from sensor_msgs.msg import JointState
-    exe = os.path.join(os.path.dirname(sys.executable), "friction_node")
-    proc = subprocess.Popen([exe, "--ros-args", "--params-file",
+    proc = subprocess.Popen([console_script("friction_node"), "--ros-args", "--params-file",
                              str(repo_root / "config" / "friction_node.yaml")])
     io = Node("script_probe", context=ros_context)
     got = []
@@ -158,7 +162,8 @@ def test_console_script_with_bundled_params_file(ros_context, repo_root):
     ex = SingleThreadedExecutor(context=ros_context)
     ex.add_node(io)
     try:
-        deadline = time.monotonic() + 30.0
+        # generous: a fresh install (colcon test) compiles the model kernels on a loaded machine
+        deadline = time.monotonic() + 180.0
         k = 0
         while not got and time.monotonic() < deadline and proc.poll() is None:
             load = WrenchStamped()
@@ -177,6 +182,68 @@ def test_console_script_with_bundled_params_file(ros_context, repo_root):
         proc.wait(timeout=10)
         ex.shutdown()
         io.destroy_node()
+
+
+def test_harness_publishes_inputs_and_collects_outputs(tmp_path):
+    """The public harness: a params file, publish helpers, every collector, its own domain."""
+    from bb_friction_ros.testing import FrictionNodeHarness
+    params = tmp_path / "params.yaml"
+    params.write_text("friction_node:\n  ros__parameters:\n    nut_joint: screw_nut\n"
+                      "    diagnostics_rate_hz: 20.0\n")
+    with FrictionNodeHarness(params_file=params, parameters={"model_rate_hz": 200.0},
+                             domain_id=77) as h:
+        assert h.node.get_parameter("nut_joint").value == "screw_nut"
+        assert h.node.get_parameter("model_rate_hz").value == 200.0
+        assert h.context.get_domain_id() == 77
+        h.publish_axial_load(1500.0, stamp_s=10.0)
+        h.publish_nut_state(0.0, 6.0, stamp_s=10.001)
+        h.publish_nut_state(0.01, 6.0, stamp_s=10.002, joint="elbow")     # rejected
+        pred = h.predictions.wait_for(1)[0]
+        assert (pred.header.stamp.sec, pred.header.stamp.nanosec) == (10, 1_000_000)
+        assert pred.converged and pred.axial_load_n == 1500.0
+        ff = h.feedforward.wait_for(1)[0]
+        assert list(ff.data) == [pred.torque_total_nm]
+        assert h.contact_groups.wait_for(1)[0].n_balls == 37
+        diag = h.diagnostics.wait_until(lambda m: any(
+            kv.key == "rejected_wrong_joint" for s in m.status for kv in s.values))
+        assert diag.status[0].level != 0           # a rejection makes it a warning
+        assert h.diagnostics_values()["rejected_wrong_joint"] == 1
+        # generic collectors: one per topic, any type; a missing one times out, named
+        assert h.collect("friction/feedforward", "std_msgs/msg/Float64MultiArray") \
+            is h.feedforward
+        with pytest.raises(TimeoutError, match="friction/prediction: 1 of 2"):
+            h.predictions.wait_for(2, timeout_s=0.3)
+        with pytest.raises(ValueError, match="not available"):
+            h.collect("nowhere", "bb_friction_msgs/msg/NoSuchMessage")
+
+
+def test_harness_follows_remapped_inputs():
+    """The node's inputs are ordinary names: remapping moves them (a namespaced robot)."""
+    from bb_friction_ros.testing import FrictionNodeHarness
+    remap = ["-r", "nut_state:=/robot/nut_state", "-r", "axial_load:=/robot/axial_load"]
+    with FrictionNodeHarness(ros_args=remap,
+                             input_topics=("/robot/nut_state", "/robot/axial_load")) as h:
+        h.publish_axial_load(1500.0, stamp_s=1.0)
+        h.publish_nut_state(0.0, -6.0, stamp_s=1.001)
+        assert h.predictions.wait_for(1)[0].torque_total_nm < 0
+
+
+def test_readme_pytest_example_runs_with_the_plugin_fixture(tmp_path, repo_root):
+    """The README's ten-line controller test runs as written, via the pytest11 entry point."""
+    import re
+    import subprocess
+    import sys
+    text = (repo_root / "README.md").read_text()
+    blocks = re.findall(r"```python\n(.*?)```", text, re.S)
+    example = next(b for b in blocks if "def test_" in b and "friction_node" in b)
+    (tmp_path / "test_readme_example.py").write_text(example)
+    import os
+    env = {k: v for k, v in os.environ.items() if k != "PYTEST_ADDOPTS"}
+    proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
+                           str(tmp_path / "test_readme_example.py")], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "1 passed" in proc.stdout
 
 
 BAD_MODEL_FILES = {   # issue 13 findings 1 and 19: each killed the node or gave a traceback

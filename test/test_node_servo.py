@@ -8,10 +8,8 @@ domain, early signals, and bad parameters.
 """
 
 import math
-import os
 import signal
 import subprocess
-import sys
 import threading
 import time
 
@@ -20,10 +18,11 @@ from rclpy.parameter import Parameter
 
 from bb_friction_ros.bags import Event
 from bb_friction_ros.config import ConfigError
-from bb_friction_ros.node import FrictionNode, play_through_node
+from bb_friction_ros.node import FrictionNode
 from bb_friction_ros.config import bundled_config
 from bb_friction_ros.replay import run_events
 from bb_friction_ros.runner import build_runner, InputAssembler
+from bb_friction_ros.testing import console_script, play_through_node
 from test_feedforward import ScriptedScrew
 
 
@@ -209,8 +208,8 @@ def test_two_nodes_on_one_domain_are_reported(ros_context):
                                          (signal.SIGTERM, 1.0), (signal.SIGINT, 1.2)])
 def test_early_signal_exits_cleanly(sig, delay_s):
     """Finding 4: SIGTERM/SIGINT during start-up: exit 0, no traceback."""
-    exe = os.path.join(os.path.dirname(sys.executable), "friction_node")
-    proc = subprocess.Popen([exe], stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen([console_script("friction_node")], stderr=subprocess.PIPE,
+                            text=True)
     time.sleep(delay_s)
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=60)

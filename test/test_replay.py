@@ -2,10 +2,12 @@
 
 import csv
 import json
+import math
 
+import numpy as np
 import pytest
 
-from bb_friction_ros.bags import Event, read_events, write_events
+from bb_friction_ros.bags import Event, read_events, with_measurement, write_events
 from bb_friction_ros.cli import main
 from recordings import short_recording
 
@@ -34,7 +36,8 @@ def test_replay_writes_prediction_summary_and_plots(tmp_path, capsys, storage):
     n_states = sum(e.kind == "nut_state" for e in events)
     assert len(rows) == n_states
     assert list(rows[0]) == ["t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n",
-                             "torque_pred_nm", "torque_b2b_nm", "torque_meas_nm"]
+                             "torque_pred_nm", "torque_b2b_nm", "torque_meas_nm", "converged"]
+    assert {r["converged"] for r in rows} == {"1"}
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["messages"]["/nut_state"] == n_states
     assert summary["rejected"] == {} and summary["nonconverged_steps"] == 0
@@ -65,3 +68,366 @@ def test_replay_counts_rejected_inputs(tmp_path):
 def test_replay_of_a_missing_bag_is_a_clear_error(tmp_path, capsys):
     assert main(["replay", str(tmp_path / "nope"), "--out", str(tmp_path / "o")]) == 2
     assert "no such bag" in capsys.readouterr().err
+
+
+# --- the output bag -----------------------------------------------------------------------
+
+def _replay_short(tmp_path, storage="mcap", extra=()):
+    events = short_recording()
+    write_events(tmp_path / "bag", events, storage=storage)
+    code = main(["replay", str(tmp_path / "bag"), "--out", str(tmp_path / "out"),
+                 "--no-progress", *extra])
+    return events, code
+
+
+def test_replay_bag_read_back_with_rosbags(tmp_path):
+    """DIR/bag: inputs copied, one prediction and feedforward per sample, at input stamps."""
+    from rosbags.rosbag2 import Reader
+    from rosbags.typesys import get_typestore, Stores
+    events, code = _replay_short(tmp_path, storage="sqlite3")
+    assert code == 0
+    rows = list(csv.DictReader(open(tmp_path / "out" / "prediction.csv")))
+    store = get_typestore(Stores.ROS2_JAZZY)     # plain Jazzy: our types come from the bag
+    got = {}
+    assert len(list((tmp_path / "out" / "bag").glob("*.mcap"))) == 1
+    with Reader(tmp_path / "out" / "bag") as reader:
+        for conn in reader.connections:
+            if conn.msgtype not in store.types:
+                from rosbags.typesys import get_types_from_msg
+                store.register(get_types_from_msg(conn.msgdef.data, conn.msgtype))
+        for conn, log_ns, raw in reader.messages():
+            got.setdefault(conn.topic, []).append((log_ns, store.deserialize_cdr(
+                raw, conn.msgtype)))
+    n_states = sum(e.kind == "nut_state" for e in events)
+    assert len(got["/nut_state"]) == n_states and len(got["/axial_load"]) == \
+        sum(e.kind == "axial_load" for e in events)
+    assert len(got["/measured_torque"]) == n_states
+    preds = got["/friction/prediction"]
+    assert len(preds) == len(rows) == n_states == len(got["/friction/feedforward"])
+    for (log_ns, p), row, (_, ff), (_, state) in zip(preds, rows, got["/friction/feedforward"],
+                                                     got["/nut_state"]):
+        stamp = p.header.stamp.sec * 1_000_000_000 + p.header.stamp.nanosec
+        assert log_ns == stamp == state.header.stamp.sec * 1_000_000_000 \
+            + state.header.stamp.nanosec
+        assert p.torque_total_nm == float(row["torque_pred_nm"]) == ff.data[0]
+        assert p.converged and p.n_groups >= 0
+    groups = got["/friction/contact_groups"]
+    assert groups and all(g.n_balls == 37 for _, g in groups)
+
+
+def test_replay_bag_decodes_with_the_mcap_library_alone(tmp_path):
+    """An independent reader (mcap-ros2-support) decodes every topic from the embedded schemas."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+    events, code = _replay_short(tmp_path)
+    assert code == 0
+    (mcap_file,) = (tmp_path / "out" / "bag").glob("*.mcap")
+    topics = {}
+    with open(mcap_file, "rb") as fh:
+        reader = make_reader(fh, decoder_factories=[DecoderFactory()])
+        for schema, channel, message, msg in reader.iter_decoded_messages():
+            topics.setdefault(channel.topic, []).append((schema.name, message.log_time, msg))
+    n_states = sum(e.kind == "nut_state" for e in events)
+    preds = topics["/friction/prediction"]
+    assert len(preds) == n_states
+    name, log_time, first = preds[0]
+    assert name == "bb_friction_msgs/msg/FrictionPrediction"
+    assert first.converged and first.torque_total_nm > 0
+    assert log_time == first.header.stamp.sec * 10**9 + first.header.stamp.nanosec
+    assert [m.data[0] for _, _, m in topics["/friction/feedforward"]] == \
+        [m.torque_total_nm for _, _, m in preds]
+    assert topics["/friction/contact_groups"][0][2].n_balls == 37
+    assert len(topics["/nut_state"]) == n_states
+    assert topics["/nut_state"][0][2].name == ["nut_joint"]
+
+
+def test_replay_bag_feedforward_is_the_safe_value_of_unconverged_steps(tmp_path):
+    """Finding 2: the output bag's feedforward carries the runner's safe value, as the node."""
+    from rosbags.rosbag2 import Reader
+    from bb_friction_ros.bags import friction_typestore
+    from bb_friction_ros.replay import _OutputBag
+    from bb_friction_ros.runner import Prediction
+    good = Prediction(1.0, 0.0, 6.0, 1500.0, 0.21, 0.2, 0.01, 0.0, True, 0.0, (), 37, True,
+                      feedforward_nm=0.21)
+    bad = Prediction(1.01, 0.06, 6.0, 2e4, -58.0, -50.0, -8.0, 0.0, False, 0.0, (), 37, True,
+                     feedforward_nm=0.21, feedforward_held=True)
+    out = _OutputBag(tmp_path / "bag", [])
+    for pred in (good, bad):
+        out.publish(pred, int(round(pred.stamp_s * 1e9)), 0.001)
+    out.close()
+    store = friction_typestore()
+    got = {}
+    with Reader(tmp_path / "bag") as reader:
+        for conn, _, raw in reader.messages():
+            got.setdefault(conn.topic, []).append(store.deserialize_cdr(raw, conn.msgtype))
+    assert [m.data[0] for m in got["/friction/feedforward"]] == [0.21, 0.21]
+    assert [(m.converged, m.torque_total_nm) for m in got["/friction/prediction"]] == \
+        [(True, 0.21), (False, -58.0)]
+
+
+def test_replay_no_bag_writes_only_csv_summary_and_plots(tmp_path):
+    _, code = _replay_short(tmp_path, extra=("--no-bag",))
+    assert code == 0
+    assert not (tmp_path / "out" / "bag").exists()
+    assert (tmp_path / "out" / "prediction.csv").exists()
+    assert "output_bag" not in json.loads((tmp_path / "out" / "summary.json").read_text())
+
+
+def test_replay_prints_nonconverged_steps_and_converged_column(tmp_path, capsys):
+    """Issue 13 finding 2 (output half): non-convergence is visible in the CSV and summary."""
+    from bb_friction_ros.replay import _row
+    from bb_friction_ros.runner import Prediction
+    _, code = _replay_short(tmp_path, extra=("--no-bag",))
+    printed = json.loads(capsys.readouterr().out.splitlines()[0])
+    assert code == 0 and printed["nonconverged_steps"] == 0
+    bad = Prediction(0.0, 0.0, 6.0, 2e4, -58.0, 0.0, 0.0, 0.0, False, 0.0, (), 37, True)
+    head, tail = _row(bad, empirical=False)
+    assert tail == ["0"]
+
+
+# --- bad input: nothing accepted, missing or wrong topics, namespaces ----------------------
+
+def _run(tmp_path, events, *flags, topics=None, params=None):
+    from bb_friction_ros.bags import Topics
+    write_events(tmp_path / "bag", events, topics=topics or Topics())
+    argv = ["replay", str(tmp_path / "bag"), "--out", str(tmp_path / "out"), "--no-progress",
+            *flags]
+    if params:
+        (tmp_path / "params.yaml").write_text(params)
+        argv += ["--params-file", str(tmp_path / "params.yaml")]
+    return main(argv)
+
+
+def _states(joint="nut_joint", n=20, position=0.1, velocity=6.0):
+    return [Event("axial_load", 0.0, value=1500.0)] + [
+        Event("nut_state", 0.001 * (k + 1), (joint,) if joint else (),
+              (position,) if joint else (), (velocity,) if joint else ()) for k in range(n)]
+
+
+def test_replay_with_a_misnamed_joint_exits_2_saying_why_and_how(tmp_path, capsys):
+    """Issue 12 / 13 finding 18: zero accepted is an error naming reasons, topics, joints, fix."""
+    assert _run(tmp_path, _states(joint="nut")) == 2
+    err = capsys.readouterr().err
+    assert "no nut_state sample was accepted" in err
+    assert "wrong_joint 20" in err
+    assert "/nut_state (sensor_msgs/msg/JointState)" in err
+    assert "/axial_load (geometry_msgs/msg/WrenchStamped)" in err
+    assert "joint names seen on /nut_state: ['nut']" in err
+    assert "--nut-joint nut" in err
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["samples"] == 0 and summary["rejected"] == {"wrong_joint": 20}
+    assert main(["replay", str(tmp_path / "bag"), "--out", str(tmp_path / "out"),
+                 "--no-progress", "--nut-joint", "nut"]) == 0
+
+
+@pytest.mark.parametrize("case,events,params,reason", [
+    ("zero-length arrays", _states(joint=None), None, "empty 20"),
+    ("all NaN", _states(position=float("nan")), None, "non_finite 20"),
+    ("no messages", [], None, "/nut_state has no messages"),
+    ("only loads", [Event("axial_load", 0.001 * k, value=1500.0) for k in range(5)], None,
+     "/nut_state has no messages"),
+    ("every load above max_axial_load_n", _states(),
+     "friction_node:\n  ros__parameters:\n    max_axial_load_n: 1000.0\n",
+     "loads exceed max_axial_load_n = 1000 N"),
+])
+def test_replay_that_accepts_nothing_exits_2(tmp_path, capsys, case, events, params, reason):
+    """Issue 13 finding 18: every case of 'nothing accepted' is an error with the reason."""
+    assert _run(tmp_path, events, params=params) == 2, case
+    err = capsys.readouterr().err
+    assert "no nut_state sample was accepted" in err and reason in err
+    assert "Traceback" not in err
+
+
+def test_replay_refuses_a_negative_max_axial_load_as_the_node_does(tmp_path, capsys):
+    """Issue 13 finding 18: a negative max_axial_load_n is refused up front, by name."""
+    params = "friction_node:\n  ros__parameters:\n    max_axial_load_n: -5.0\n"
+    assert _run(tmp_path, _states(), params=params) == 2
+    err = capsys.readouterr().err
+    assert "friction_node.max_axial_load_n: must be >= 1.0 N" in err and "Traceback" not in err
+
+
+def test_namespaced_topics_are_used_only_when_named(tmp_path, capsys):
+    """Issue 13 finding 16: /robot/... gives a hint, not a KeyError; the flags select it."""
+    from bb_friction_ros.bags import Topics
+    ns = Topics(nut_state="/robot/nut_state", axial_load="/robot/axial_load")
+    assert _run(tmp_path, _states(), topics=ns) == 2
+    err = capsys.readouterr().err
+    assert "no topic /nut_state" in err and "--nut-state-topic /robot/nut_state" in err
+    code = main(["replay", str(tmp_path / "bag"), "--out", str(tmp_path / "out2"),
+                 "--no-progress", "--nut-state-topic", "/robot/nut_state",
+                 "--axial-load-topic", "/robot/axial_load"])
+    assert code == 0
+    summary = json.loads((tmp_path / "out2" / "summary.json").read_text())
+    assert summary["samples"] == 20
+    assert summary["messages"] == {"/robot/nut_state": 20, "/robot/axial_load": 1}
+
+
+def test_discrepancy_on_namespaced_topics_is_a_clear_error(tmp_path, capsys):
+    """The same resolution serves the discrepancy workflow (exit 2, no KeyError)."""
+    from bb_friction_ros.bags import Topics
+    ns = Topics(nut_state="/robot/nut_state", axial_load="/robot/axial_load")
+    write_events(tmp_path / "bag", _states(), topics=ns)
+    assert main(["discrepancy", str(tmp_path / "bag"), "--out", str(tmp_path / "d"),
+                 "--no-progress", "--no-plots"]) == 2
+    assert "--nut-state-topic /robot/nut_state" in capsys.readouterr().err
+
+
+def test_discrepancy_that_accepts_nothing_says_why_and_how(tmp_path, capsys):
+    """Issue 12: discrepancy names the reasons, the bag's topics and joints, and the fix."""
+    write_events(tmp_path / "bag", with_measurement(_states(joint="nut"), [0.2] * 20))
+    assert main(["discrepancy", str(tmp_path / "bag"), "--out", str(tmp_path / "d"),
+                 "--no-progress", "--no-plots"]) == 2
+    err = capsys.readouterr().err
+    for needle in ("no nut_state sample was accepted", "wrong_joint 20",
+                   "/nut_state (sensor_msgs/msg/JointState)", "['nut']", "--nut-joint nut"):
+        assert needle in err, err
+
+
+def _bag_with_types(path, types):
+    """A bag whose topics have the given types (one message each where we can build one)."""
+    from bb_friction_ros.bags import BagWriter, _header, _wrench
+    with BagWriter(path, storage="sqlite3") as out:
+        store = out.store
+        for topic, msgtype in types.items():
+            conn = out.connection(topic, msgtype)
+            if msgtype.endswith("WrenchStamped"):
+                out.write(conn, 1, _wrench(store, 0.0, force_z=1500.0))
+            elif msgtype.endswith("JointState"):
+                out.write(conn, 2, store.types[msgtype](
+                    header=_header(store, 0.001), name=["nut_joint"],
+                    position=np.array([0.1]), velocity=np.array([6.0]), effort=np.zeros(0)))
+
+
+@pytest.mark.parametrize("types,needles", [
+    ({"/axial_load": "geometry_msgs/msg/WrenchStamped"},
+     ["no topic /nut_state (sensor_msgs/msg/JointState)", "/axial_load (geometry_msgs"]),
+    ({"/nut_state": "sensor_msgs/msg/JointState"},
+     ["no topic /axial_load (geometry_msgs/msg/WrenchStamped)"]),
+    ({"/nut_state": "geometry_msgs/msg/WrenchStamped", "/axial_load":
+      "geometry_msgs/msg/WrenchStamped"},
+     ["topic /nut_state has type geometry_msgs/msg/WrenchStamped, expected "
+      "sensor_msgs/msg/JointState"]),
+    ({"/nut_state": "geometry_msgs/msg/WrenchStamped", "/axial_load":
+      "sensor_msgs/msg/JointState"},    # swapped topics
+     ["topic /nut_state has type geometry_msgs/msg/WrenchStamped",
+      "topics of type sensor_msgs/msg/JointState: /axial_load"]),
+])
+def test_missing_or_mistyped_topics_exit_2_naming_them(tmp_path, capsys, types, needles):
+    """Issue 12 / 13 finding 17: no input topic, wrong types, swapped topics."""
+    _bag_with_types(tmp_path / "bag", types)
+    assert main(["replay", str(tmp_path / "bag"), "--out", str(tmp_path / "out"),
+                 "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert str(tmp_path / "bag") in err and "Traceback" not in err
+    for needle in needles:
+        assert needle in err
+
+
+def test_summary_counts_messages_read_not_metadata(tmp_path):
+    """Issue 13 finding 13: metadata.yaml claiming 99,999 messages does not fool the summary."""
+    import yaml
+    events = _states(n=45)
+    write_events(tmp_path / "bag", events, storage="mcap")
+    meta_path = tmp_path / "bag" / "metadata.yaml"
+    meta = yaml.safe_load(meta_path.read_text())
+    info = meta["rosbag2_bagfile_information"]
+    info["message_count"] = 99_999
+    for t in info["topics_with_message_count"]:
+        t["message_count"] = 99_999
+    meta_path.write_text(yaml.safe_dump(meta))
+    from bb_friction_ros.replay import replay
+    summary = replay(tmp_path / "bag", tmp_path / "out", progress=False)
+    assert summary["messages"]["/nut_state"] == 45
+    assert summary["messages"]["/axial_load"] == 1
+
+
+def test_looping_bag_aligns_measurement_within_each_run(tmp_path):
+    """
+    Issue 13 finding 6: a bag played twice with the same stamps.
+
+    Each pass must be compared with its own measurement (0.1 then 0.3 N m here), not every
+    row with the last pass's.
+    """
+    one = [Event("axial_load", 0.0, value=1500.0)]
+    for k in range(10):
+        one.append(Event("nut_state", 0.01 * (k + 1), ("nut_joint",), (0.06 * k,), (6.0,)))
+    loop = with_measurement(one, [0.1] * 10) + with_measurement(one, [0.3] * 10)
+    write_events(tmp_path / "bag", loop, storage="mcap",
+                 log_times_s=[0.001 * i for i in range(len(loop))])
+    from bb_friction_ros.replay import replay
+    summary = replay(tmp_path / "bag", tmp_path / "out", progress=False, write_bag=False)
+    rows = list(csv.DictReader(open(tmp_path / "out" / "prediction.csv")))
+    assert summary["resets"] == 1 and len(rows) == 20
+    assert [float(r["torque_meas_nm"]) for r in rows] == [0.1] * 10 + [0.3] * 10
+
+
+def test_replay_streams_in_bounded_memory(tmp_path, monkeypatch):
+    """
+    Issue 12 / 13 finding 26: replay holds no message or prediction after it is answered.
+
+    Near the end of a 3000-sample bag the Python objects alive are counted: a replay that
+    reads the bag into a list first, or keeps its predictions (as replay once did, ~1 kB a
+    sample: 1.2 GB for a 10-minute 1 kHz bag), holds thousands.  The plotted series go to a
+    temporary file.  bench/bench_replay.py measures the process's peak RSS on that bag.
+    """
+    import gc
+    from bb_friction_ros.bags import BagInput
+    from bb_friction_ros.replay import replay, _Series
+    from bb_friction_ros.runner import Prediction
+    n = 3000
+    events = [Event("axial_load", 0.0, value=1500.0)]
+    events += [Event("nut_state", 0.001 * (k + 1), ("nut_joint",), (0.006 * k,), (6.0,))
+               for k in range(n)]
+    write_events(tmp_path / "bag", with_measurement(events, [0.2] * n), storage="mcap")
+    del events
+    alive = {}
+    messages = BagInput.messages
+
+    def count(kind):     # other tests' parameters hold a few Events too
+        gc.collect()
+        return sum(isinstance(o, kind) for o in gc.get_objects())
+
+    before = {"events": count(Event), "predictions": count(Prediction)}
+
+    def counting(self, *args, **kwargs):
+        for k, item in enumerate(messages(self, *args, **kwargs)):
+            if k == 2 * n - 10:              # nut_state and measured_torque: near the end
+                alive["events"] = count(Event) - before["events"]
+                alive["predictions"] = count(Prediction) - before["predictions"]
+                alive["series_rows_in_memory"] = sum(
+                    len(o._buf) // len(o.COLUMNS) for o in gc.get_objects()
+                    if isinstance(o, _Series))
+            yield item
+
+    monkeypatch.setattr(BagInput, "messages", counting)
+    summary = replay(tmp_path / "bag", tmp_path / "out", progress=False)
+    assert summary["samples"] == n and alive, alive
+    assert alive["events"] < 20 and alive["predictions"] < 20, alive
+    assert alive["series_rows_in_memory"] <= _Series.BUFFER_ROWS, alive
+
+
+def test_plotted_series_decimates_in_bounded_memory():
+    """
+    Finding 26: the plot's min/max envelope is built a buffer at a time.
+
+    200k rows (12.8 MB of float64) give at most 2 points per bucket, keep every extreme,
+    and the decimation holds < 3 MB at its peak (a kept view of each block held them all).
+    """
+    import tracemalloc
+    from bb_friction_ros.replay import _Series
+    series = _Series(measured=False)
+    n = 200_000
+    for k in range(n):
+        series.measure((0.001 * k, math.sin(k / 500.0), 0.0, 6.0, 1500.0, 0.0, float(k % 7)),
+                       math.nan)
+    tracemalloc.start()
+    try:
+        c = series.decimated(buckets=2000)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+        series.close()
+    assert len(c["t"]) <= 2 * 2000 + 2 and len(c["torque"]) == len(c["t"])
+    assert c["torque"].max() == pytest.approx(1.0, abs=1e-6) and c["largest"].max() == 6.0
+    assert c["t"][0] == 0.0 and c["t"][-1] <= 0.001 * (n - 1)
+    assert peak < 3_000_000, peak

@@ -17,22 +17,24 @@ kept for the model (continuity of the ball state) but not analysed.
 """
 
 from array import array
+from collections import Counter
 import csv
 import dataclasses
 import itertools
 import math
 from pathlib import Path
 import sys
+from types import SimpleNamespace
 from typing import Optional
 
 import numpy as np
 
-from bb_friction_ros.bags import Event, iter_events, measured_torque_at, Topics
+from bb_friction_ros.bags import BagInput, Event, measured_torque_at, Topics
 from bb_friction_ros.config import bundled_config, ConfigError
 from bb_friction_ros.empirical_terms import Inputs
 from bb_friction_ros.model_file import load_model_file
 from bb_friction_ros.node_parameters import NodeParameters
-from bb_friction_ros.replay import run_events
+from bb_friction_ros.replay import nothing_accepted_message, run_events
 from bb_friction_ros.runner import build_runner, InputAssembler
 
 CSV_REQUIRED = ("t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n",
@@ -210,17 +212,25 @@ def load_bag(path, config_path, replay_settings=NodeParameters(), topics=Topics(
     measurements are kept as packed float columns only.
     """
     try:
-        events, counts = iter_events(path, topics)
+        src = BagInput(path, topics)
     except (FileNotFoundError, ValueError) as exc:
         raise InputProblem(str(exc)) from exc
+    with src:
+        return _load_bag_input(src, path, config_path, replay_settings, topics, progress,
+                               baseline)
+
+
+def _load_bag_input(src, path, config_path, replay_settings, topics, progress, baseline):
+    counts = src.counts                  # messages actually read, filled as the bag streams
+    events = (ev for _, _, _, ev in src.messages(all_topics=False))
 
     def no_measurement():
         return InputProblem(f"{path}: no measured torque: topic {topics.measured_torque!r} "
-                            f"is missing or empty (topics in the bag: "
-                            f"{', '.join(sorted(counts)) or 'none'}); the discrepancy needs "
-                            "a measurement to compare with (--measured-topic)")
-    measured = [n for topic, n in counts.items()
-                if topic.lstrip("/") == topics.measured_torque.lstrip("/")]
+                            f"is missing or empty (topics in the bag: {src.describe()}); the "
+                            "discrepancy needs a measurement to compare with "
+                            "(--measured-topic)")
+    measured = [c.msgcount for c in src.connections
+                if c.topic.lstrip("/") == topics.measured_torque.lstrip("/")]
     if not any(measured):
         raise no_measurement()        # before running the model over the whole bag
     meas_t, meas_v = array("d"), array("d")
@@ -229,21 +239,21 @@ def load_bag(path, config_path, replay_settings=NodeParameters(), topics=Topics(
         packed, rejected = zero_baseline_events(inputs, replay_settings)
         info = {"input": str(path), "format": "rosbag2", "baseline": "zero",
                 "prediction_source": "none (--baseline zero: no model of this screw)",
-                "messages": counts, "rejected": rejected}
+                "messages": dict(counts), "rejected": rejected}
         base = ()
     else:
         packed, stats = predict_events(inputs, config_path, replay_settings, progress)
         rejected = dict(stats.rejected)
         info = {"input": str(path), "format": "rosbag2",
-                "prediction_source": "model (replay path)", "messages": counts,
+                "prediction_source": "model (replay path)", "messages": dict(counts),
                 "rejected": rejected, "nonconverged_steps": stats.nonconverged_steps,
                 "resets": stats.resets}
         base = load_model_file(config_path)[1].names
     if not meas_t:
         raise no_measurement()
-    if not len(packed):
-        raise InputProblem(f"{path}: no usable nut_state sample (rejected: "
-                           f"{rejected or 'none'})")
+    if not len(packed):   # the reasons, what the bag holds and the fix, as replay says them
+        raise InputProblem(nothing_accepted_message(
+            src, SimpleNamespace(rejected=Counter(rejected)), replay_settings))
     measured_events = (Event("measured_torque", t, value=v) for t, v in zip(meas_t, meas_v))
     meas = measured_torque_at(measured_events, packed.column("stamp_s"))   # as replay does
     return _from_packed(packed, meas, info, base)
