@@ -550,7 +550,7 @@ class FrictionNode(Node):
         return super().destroy_node()
 
 
-def main(args=None):
+def main(args=None, on_spin=None):
     """Run friction_node (entered through ``node_entry.main``: console script and CLI)."""
     # Two Python threads (executor, model) trade the GIL; at CPython's default 5 ms switch
     # interval each handoff can wait up to 5 ms (measured: bench/bench_node.py).
@@ -578,6 +578,8 @@ def main(args=None):
             if rclpy.ok():
                 raise
             return 0            # the context was shut down by a signal during start-up
+        if on_spin is not None:
+            on_spin()           # node_entry: from here a signal shuts down in order
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass

@@ -7,6 +7,7 @@ place before that work starts; a signal at any moment of start-up then ends in a
 (status 0, no traceback) instead of a KeyboardInterrupt or "context is invalid" traceback.
 """
 
+import os
 import signal
 import sys
 import threading
@@ -25,17 +26,39 @@ class Shutdown(KeyboardInterrupt):
 # extension initialises (scipy, numba) surfaces as "ImportError: initialization failed", not
 # as the handler's exception, so the import's caller must know a signal came.
 _received = []
+# Until the node spins, a signal ends the process at once (status 0).  Raising there is not
+# safe: an exception thrown into rclpy.init or the node's construction (rclpy chains our
+# handler after its own) was seen to be swallowed, and the node then ran on until killed
+# (colcon test, test_early_signal_exits_cleanly[15-0.3]).  Nothing is written or owed
+# before the node spins, so there is nothing to clean up.
+_starting = [True]
+
+
+def _exit_now(signum):
+    _received.append(signum)
+    if _starting[0]:
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):
+                pass
+        os._exit(0)
+
+
+def started():
+    """Mark that the node spins: signals raise again from now on, so it shuts down in order."""
+    _starting[0] = False
 
 
 def raise_shutdown(signum, frame):
-    """Turn SIGTERM into an exception the start-up and spin code catch."""
-    _received.append(signum)
+    """SIGTERM: exit at once during start-up; afterwards an exception the spin code catches."""
+    _exit_now(signum)
     raise Shutdown(signum)
 
 
 def raise_interrupt(signum, frame):
-    """SIGINT as Python's default handler does, remembering that it came."""
-    _received.append(signum)
+    """SIGINT: as SIGTERM, but KeyboardInterrupt (Python's default) once the node spins."""
+    _exit_now(signum)
     raise KeyboardInterrupt
 
 
@@ -57,7 +80,7 @@ def main(args=None):
         if _received:               # the signal's exception, re-raised by an extension's init
             return 0
         raise
-    return node_main(args)
+    return node_main(args, on_spin=started)
 
 
 if __name__ == "__main__":

@@ -10,6 +10,7 @@ domain, early signals, and bad parameters.
 import math
 import signal
 import subprocess
+import sys
 import threading
 import time
 
@@ -239,6 +240,33 @@ def test_signal_inside_an_extension_import_exits_cleanly(monkeypatch):
         node_entry.main([])
     monkeypatch.setattr(node_entry, "_received", [signal.SIGTERM])
     assert node_entry.main([]) == 0
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_signal_before_the_node_spins_ends_the_process_at_once(sig):
+    """Finding 4: during start-up a signal exits 0 at once instead of raising into rclpy.
+
+    An exception raised into rclpy.init or the node's construction was swallowed once, and
+    the node ran on (colcon test timed out).  Once the node spins, signals raise again.
+    """
+    code = ("import os, signal, sys, time\n"
+            "from bb_friction_ros import node_entry\n"
+            "node_entry.install_handlers()\n"
+            "try:\n"
+            "    node_entry.started()\n"
+            f"    os.kill(os.getpid(), {int(sig)})\n"
+            "    time.sleep(5)\n"
+            "except KeyboardInterrupt as exc:\n"
+            "    print('raised after start', type(exc).__name__)\n"
+            "node_entry._starting[0] = True\n"
+            f"os.kill(os.getpid(), {int(sig)})\n"
+            "time.sleep(5)\n"
+            "print('survived the start-up signal')\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=30)
+    assert out.returncode == 0, out.stderr
+    assert "raised after start" in out.stdout, out.stdout + out.stderr
+    assert "survived" not in out.stdout and "Traceback" not in out.stderr, out.stdout
 
 
 def test_empty_nut_joint_is_refused(ros_context):
