@@ -535,6 +535,23 @@ def newton_direction(seq, starts, rear_of, front_of, jac, dax, res, axial, cons,
 
 
 @_jit
+def add_b2b_forces(x, rear, front, g_r, g_f, fhat, res, cons):
+    """
+    Add each B2B pair's force (``fhat`` along ``g_r``/``g_f``) to its two balls' residuals.
+
+    Also writes the pair's constraint residual into ``cons``.  One loop for the rigid and
+    the elastic residual.
+    """
+    for c in range(rear.shape[0]):
+        r = rear[c]
+        f = front[c]
+        for j in range(6):
+            res[r, j] += g_r[c, j] * fhat[c]
+            res[f, j] += g_f[c, j] * fhat[c]
+        cons[c] = x[r, 2] - x[f, 2]
+
+
+@_jit
 def _residual(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid,
               scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, res, jac, dax, terms,
               per_contact, g_r, g_f, speed, dgr_r, dgr_f, dgf_r, dgf_f, cons, want_jac):
@@ -544,13 +561,7 @@ def _residual(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, co
                         per_contact)
     b2b_terms(x, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, want_jac, g_r, g_f, speed, dgr_r,
               dgr_f, dgf_r, dgf_f)
-    for c in range(rear.shape[0]):
-        r = rear[c]
-        f = front[c]
-        for j in range(6):
-            res[r, j] += g_r[c, j] * fhat[c]
-            res[f, j] += g_f[c, j] * fhat[c]
-        cons[c] = x[r, 2] - x[f, 2]
+    add_b2b_forces(x, rear, front, g_r, g_f, fhat, res, cons)
     axial = (ax + axial_load_n) / scale
     norm = abs(axial)
     for i in range(res.shape[0]):
@@ -832,13 +843,7 @@ def _elastic_residual(x, v, cum, fhat, centres, sign, cst, k_load, k_axis, on_nu
                    grid, scale, want_jac, res, jac, dax, terms, per_contact)
     b2b_terms(x, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, want_jac, g_r, g_f, speed, dgr_r,
               dgr_f, dgf_r, dgf_f)
-    for c in range(rear.shape[0]):
-        r = rear[c]
-        f = front[c]
-        for j in range(6):
-            res[r, j] += g_r[c, j] * fhat[c]
-            res[f, j] += g_f[c, j] * fhat[c]
-        cons[c] = x[r, 2] - x[f, 2]
+    add_b2b_forces(x, rear, front, g_r, g_f, fhat, res, cons)
     n = x.shape[0]
     inv_s = 1.0 / scale
     for k in range(n):
