@@ -10,8 +10,9 @@ The one reader and the one writer of its layout::
       - {name: viscous_drag, params: {c_nm_s_per_rad: 0.004}}
 
 A file without the ``ball_screw`` key holds the ball-screw sections at top level (next to
-``empirical_terms``).  A file with no ball-screw values at all (empty, or only ``ball_screw:``)
-is refused, naming the file: it would otherwise run as the paper's screw (issue 23, finding 9).  The bundled ``config/ball_screw.yaml`` is a model file without terms;
+``empirical_terms``).  A file with no ball-screw values at all (empty, or only
+``ball_screw:``) is refused, naming the file: it would otherwise run as the paper's screw
+(issue 23, finding 9).  The bundled ``config/ball_screw.yaml`` is a model file without terms;
 the discrepancy workflow writes ``augmented.yaml`` with them; the node and replay read both.
 """
 
