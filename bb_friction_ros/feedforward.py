@@ -61,7 +61,7 @@ STALE = "stale"
 
 
 def _finite(x):
-    """True for a finite float (no math import: this must port line by line to C++)."""
+    """Return True for a finite float (no math import: this ports line by line to C++)."""
     return x == x and x - x == 0.0     # NaN != NaN; inf - inf is NaN
 
 

@@ -120,7 +120,7 @@ def main():
         est = {"a": np.array([p.torque_total_nm for p in zoh])[keep],
                "b": interpolate(stream, prof_b, False)[keep],
                "c": interpolate(stream, prof_c, True,
-                                 node_runner.screw.max_axial_load_n)[keep]}
+                                node_runner.screw.max_axial_load_n)[keep]}
         rms = {k: float(np.sqrt(np.mean((v - ref) ** 2))) for k, v in est.items()}
         at_step = np.array([p.stepped for p in zoh])[keep]
         rms["floor"] = float(np.sqrt(np.mean((est["a"] - ref)[at_step] ** 2)))
