@@ -34,7 +34,7 @@ import time
 import numpy as np
 
 from bb_friction_ros.ball_screw.whole_screw import WholeScrew
-from bb_friction_ros.model_file import load_model_file
+from bb_friction_ros.model_file import load_model_file, NoPhysics, physics_of
 
 
 # Stamps are compared as float seconds: at epoch times (~1.7e9 s) their resolution is ~0.24 us,
@@ -423,7 +423,9 @@ def build_runner(config_path, model_rate_hz):
     torque to every prediction.
     """
     cfg, terms = load_model_file(config_path)
-    runner = ModelRunner(WholeScrew(cfg), model_rate_hz, terms if len(terms) else None)
+    # physics: none (a discrepancy --baseline zero model): the terms are the whole torque
+    screw = NoPhysics() if physics_of(config_path) == "none" else WholeScrew(cfg)
+    runner = ModelRunner(screw, model_rate_hz, terms if len(terms) else None)
     runner.warm_up(cfg.operation.axial_load_n, cfg.operation.nut_velocity_rad_s)
     return runner
 
