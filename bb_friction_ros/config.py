@@ -18,7 +18,19 @@ import warnings
 import yaml
 
 
-class ConfigError(ValueError):
+class BBFrictionError(ValueError):
+    """
+    Bad input from the user: a file, flag, recording or message that cannot be used as given.
+
+    The parent of every input error of the package (``ConfigError``, ``BagError``,
+    ``InputProblem``, ``InsufficientData``, ``InputError``, ``OutputPathError``, ...).  The
+    CLI turns these, and only these, into exit status 2 with the message; any other exception
+    is a bug and keeps its traceback (exit 1).  A ``ValueError`` so that callers catching
+    ``ValueError`` keep working.
+    """
+
+
+class ConfigError(BBFrictionError):
     """A configuration value is missing, unknown or out of range; message names the key."""
 
 

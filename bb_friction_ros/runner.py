@@ -34,6 +34,7 @@ import time
 import numpy as np
 
 from bb_friction_ros.ball_screw.whole_screw import WholeScrew
+from bb_friction_ros.config import BBFrictionError
 from bb_friction_ros.model_file import load_model_file, NoPhysics, physics_of
 
 
@@ -79,7 +80,7 @@ def _sign(x):
     return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
 
 
-class InputError(ValueError):
+class InputError(BBFrictionError):
     """An input message is rejected; ``reason`` is a short key counted in diagnostics."""
 
     def __init__(self, reason, detail):

@@ -30,7 +30,7 @@ from typing import Optional
 import numpy as np
 
 from bb_friction_ros.bags import BagInput, Event, measured_torque_at, Topics
-from bb_friction_ros.config import bundled_config, ConfigError
+from bb_friction_ros.config import BBFrictionError, bundled_config, ConfigError
 from bb_friction_ros.empirical_terms import Inputs
 from bb_friction_ros.model_file import load_model_file
 from bb_friction_ros.node_parameters import NodeParameters
@@ -58,7 +58,7 @@ MIN_RUN_ROWS = 10
 EVENTS_PER_CHUNK = 65536
 
 
-class InputProblem(ValueError):
+class InputProblem(BBFrictionError):
     """The input cannot be analysed at all (missing file, no measured torque, bad CSV)."""
 
 

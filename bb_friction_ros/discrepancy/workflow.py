@@ -30,6 +30,7 @@ import math
 
 import numpy as np
 
+from bb_friction_ros.config import BBFrictionError
 from bb_friction_ros.discrepancy import regimes
 from bb_friction_ros.discrepancy.data import inputs_of
 from bb_friction_ros.discrepancy.selection import ambiguities, candidates, select
@@ -37,7 +38,7 @@ from bb_friction_ros.empirical_terms import filter_lag_s, TermSet, zero_phase_ac
 from bb_friction_ros.model_file import physics_of, read_model_file, write_model_file
 
 
-class InsufficientData(ValueError):
+class InsufficientData(BBFrictionError):
     """The recording is too short or too flat to tell effects apart; ``missing`` says why."""
 
     def __init__(self, missing):
