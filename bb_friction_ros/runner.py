@@ -34,7 +34,8 @@ import time
 import numpy as np
 
 from bb_friction_ros.ball_screw.whole_screw import WholeScrew
-from bb_friction_ros.model_file import load_model_file
+from bb_friction_ros.config import BBFrictionError
+from bb_friction_ros.model_file import load_model_file, NoPhysics, physics_of
 
 
 # Stamps are compared as float seconds: at epoch times (~1.7e9 s) their resolution is ~0.24 us,
@@ -79,7 +80,7 @@ def _sign(x):
     return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
 
 
-class InputError(ValueError):
+class InputError(BBFrictionError):
     """An input message is rejected; ``reason`` is a short key counted in diagnostics."""
 
     def __init__(self, reason, detail):
@@ -423,7 +424,9 @@ def build_runner(config_path, model_rate_hz):
     torque to every prediction.
     """
     cfg, terms = load_model_file(config_path)
-    runner = ModelRunner(WholeScrew(cfg), model_rate_hz, terms if len(terms) else None)
+    # physics: none (a discrepancy --baseline zero model): the terms are the whole torque
+    screw = NoPhysics() if physics_of(config_path) == "none" else WholeScrew(cfg)
+    runner = ModelRunner(screw, model_rate_hz, terms if len(terms) else None)
     runner.warm_up(cfg.operation.axial_load_n, cfg.operation.nut_velocity_rad_s)
     return runner
 
