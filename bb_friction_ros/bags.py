@@ -22,6 +22,8 @@ import struct
 import numpy as np
 import yaml
 
+from bb_friction_ros.config import BBFrictionError
+
 JOINT_STATE = "sensor_msgs/msg/JointState"
 WRENCH_STAMPED = "geometry_msgs/msg/WrenchStamped"
 MSGS_PACKAGE = "bb_friction_msgs"
@@ -34,7 +36,7 @@ KIND_FLAGS = {"nut_state": "--nut-state-topic", "axial_load": "--axial-load-topi
 MAX_JOINT_NAMES_KEPT = 20
 
 
-class BagError(ValueError):
+class BagError(BBFrictionError):
     """A recording that cannot be used as asked; the message names the file and the fix."""
 
 

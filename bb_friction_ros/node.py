@@ -31,6 +31,7 @@ forward-command convention; the runner's safe value when a step did not converge
 
 import collections
 import dataclasses
+import math
 import sys
 import threading
 import time
@@ -106,7 +107,8 @@ class FrictionNode(Node):
         self._queue = collections.deque(maxlen=p.queue_size)
         self._busy = False          # the model thread owns the runner until it clears this
         self._profile_seed = None
-        self._runner = build_runner(_model_file(p), p.model_rate_hz)
+        self._runner = build_runner(_model_file(p), p.model_rate_hz, p.model_step_deg,
+                                    p.max_model_step_deg)
         self._assembler = InputAssembler(p.nut_joint, p.max_axial_load_n)
         self._pending = None    # (parameters, runner, names) validated, applied after the set
         self._max_age_ns = int(p.max_answer_age_s * 1e9)
@@ -114,6 +116,7 @@ class FrictionNode(Node):
         self._dropped = 0
         self._shed = 0
         self._shed_at_diag = 0
+        self._stalls_at_diag = 0
         self._received = collections.Counter()
         self._published = 0
         self._inline = 0
@@ -408,6 +411,11 @@ class FrictionNode(Node):
                 "last_step_s": stats.last_step_wall_s,
                 "nonconverged_steps": stats.nonconverged_steps,
                 "feedforward_held": self._ff_held,
+                "feedforward_zeroed": stats.feedforward_zeroed,
+                "model_step_deg": math.degrees(self._runner.model_step_rad),
+                "coarse_steps": stats.coarse_steps,
+                "stamp_stalls": stats.stamp_stalls,
+                "term_restarts": stats.term_restarts,
                 "queue_length": len(self._queue),
                 "skipped_inputs": self._dropped + stats.skipped_steps,
                 "skipped_steps": stats.skipped_steps,
@@ -471,6 +479,14 @@ class FrictionNode(Node):
             notes.append(f"shedding load: {values['shed_since_last_report']} answers older "
                          f"than max_answer_age_s = {values['max_answer_age_s']:.6g} s not "
                          "published")
+        if values["stamp_stalls"] > self._stalls_at_diag:
+            notes.append(f"input stamps do not advance ({values['stamp_stalls']} samples with "
+                         "the previous sample's stamp): the model steps on nut angle, "
+                         "direction and load only, and model_age_s is 0 for those")
+        self._stalls_at_diag = values["stamp_stalls"]
+        if values["coarse_steps"]:
+            notes.append(f"model could not keep up: {values['coarse_steps']} coarser steps, "
+                         f"now {values['model_step_deg']:.3g} deg per step")
         if values["skipped_steps"]:
             notes.append(f"model fell behind: {values['skipped_steps']} steps skipped "
                          "(answers differ from replay from then on)")
@@ -509,7 +525,8 @@ class FrictionNode(Node):
             new = node_parameters(updates, node_parameters(current))
             runner = None
             if MODEL_PARAMETERS & updates.keys():
-                runner = build_runner(_model_file(new), new.model_rate_hz)
+                runner = build_runner(_model_file(new), new.model_rate_hz,
+                                      new.model_step_deg, new.max_model_step_deg)
         except ConfigError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
         except Exception as exc:     # a model that cannot be built: refused, node lives
@@ -527,8 +544,10 @@ class FrictionNode(Node):
         with self._lock:
             if runner is not None:
                 # counters go on across the swap: diagnostics stay cumulative and the model
-                # rate window keeps its base (a new runner's zero gave one negative rate)
-                runner.stats = self._runner.stats
+                # rate window keeps its base (a new runner's zero gave one negative rate);
+                # the same empirical terms keep their clock and filter
+                if not runner.continue_from(self._runner) and runner.terms is not None:
+                    self._reset_note = "empirical terms restarted (model rebuilt)"
                 self._runner = runner
             self._assembler.nut_joint = new.nut_joint
             self._assembler.max_axial_load_n = new.max_axial_load_n

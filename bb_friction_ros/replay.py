@@ -285,7 +285,8 @@ def replay(bag, out, config=None, settings=NodeParameters(), topics=Topics(), pr
     out.mkdir(parents=True, exist_ok=True)
     with BagInput(bag, topics) as src:
         runner = build_runner(config or settings.config_file
-                              or bundled_config("ball_screw.yaml"), settings.model_rate_hz)
+                              or bundled_config("ball_screw.yaml"), settings.model_rate_hz,
+                              settings.model_step_deg, settings.max_model_step_deg)
         assembler = InputAssembler(settings.nut_joint, settings.max_axial_load_n)
         # metadata's count decides only whether the column exists: an empty measured topic
         # would hold every row back waiting for a measurement
@@ -300,6 +301,7 @@ def replay(bag, out, config=None, settings=NodeParameters(), topics=Topics(), pr
             if outbag is not None:
                 outbag.close()
         summary.update(bag=str(bag), model_rate_hz=settings.model_rate_hz,
+                       model_step_deg=settings.model_step_deg,
                        topics=dict(src.topic_types))
         if outbag is not None:
             summary["output_bag"] = {"path": str(out / "bag"), "written": outbag.written,

@@ -30,7 +30,7 @@ from typing import Optional
 import numpy as np
 
 from bb_friction_ros.bags import BagInput, Event, measured_torque_at, Topics
-from bb_friction_ros.config import bundled_config, ConfigError
+from bb_friction_ros.config import BBFrictionError, bundled_config, ConfigError
 from bb_friction_ros.empirical_terms import Inputs
 from bb_friction_ros.model_file import load_model_file
 from bb_friction_ros.node_parameters import NodeParameters
@@ -41,6 +41,13 @@ CSV_REQUIRED = ("t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n",
                 "torque_meas_nm")
 CSV_PREDICTION = "torque_pred_nm"
 CSV_ACCELERATION = "nut_accel_rad_s2"
+# replay's prediction.csv of a model with fitted terms: the terms' share of torque_pred_nm
+CSV_EMPIRICAL = "torque_empirical_nm"
+# How closely the --config's terms, evaluated on the CSV rows as the runner does, must
+# reproduce its torque_empirical_nm: replay writes it with repr (exact), so only rounding
+# of a re-saved file [N m] and a relative share of its RMS separate the two.
+EMPIRICAL_MATCH_ABS_NM = 1e-6
+EMPIRICAL_MATCH_REL = 1e-3
 # Rows a run of a multi-run CSV needs: fewer between two backward steps of t_s is not a run
 # but rows out of order (a shuffled or reversed file).
 MIN_RUN_ROWS = 10
@@ -51,7 +58,7 @@ MIN_RUN_ROWS = 10
 EVENTS_PER_CHUNK = 65536
 
 
-class InputProblem(ValueError):
+class InputProblem(BBFrictionError):
     """The input cannot be analysed at all (missing file, no measured torque, bad CSV)."""
 
 
@@ -153,7 +160,8 @@ def predict_events(events, config_path, replay_settings, progress=False):
     Return (Packed predictions, runner stats).  The events go through ``replay.run_events``
     a chunk at a time with one runner and assembler, so the result is the same as in one call.
     """
-    runner = build_runner(config_path, replay_settings.model_rate_hz)
+    runner = build_runner(config_path, replay_settings.model_rate_hz,
+                          replay_settings.model_step_deg, replay_settings.max_model_step_deg)
     assembler = InputAssembler(replay_settings.nut_joint, replay_settings.max_axial_load_n)
     packed = Packed()
     for chunk in _chunks(events, progress):
@@ -276,7 +284,8 @@ def _read_csv_columns(path, required=CSV_REQUIRED):
             raise InputProblem(f"{path}: CSV lacks column(s) {', '.join(missing)} (needs "
                                f"{', '.join(required)}; optional {CSV_PREDICTION}, "
                                f"{CSV_ACCELERATION}); has: {', '.join(header) or 'no header'}")
-        wanted = list(required) + [c for c in (CSV_PREDICTION, CSV_ACCELERATION)
+        wanted = list(required) + [c for c in (CSV_PREDICTION, CSV_ACCELERATION,
+                                               CSV_EMPIRICAL)
                                    if c in header and c not in required]
         cols = {c: [] for c in wanted}
         try:
@@ -314,6 +323,58 @@ def check_time_order(path, t_s):
     return int(back.size) + 1
 
 
+def check_time_advances(path, t_s):
+    """
+    Refuse a file whose ``t_s`` never advances (issue 23, finding 13).
+
+    Every row at one time has no sample period: no acceleration, no time regimes and no
+    thermal time scale can be derived (it crashed in the thermal grid before).
+    """
+    if t_s.size > 1 and not np.ptp(t_s) > 0.0:
+        raise InputProblem(f"{path}: column t_s never advances (all {t_s.size} rows at "
+                           f"t_s = {t_s[0]:.9g}); the workflow needs the sample times in "
+                           "seconds (a logger that leaves the stamp at 0 must be given one)")
+
+
+def check_reused_terms(path, cols, config_path):
+    """
+    Refuse a reused prediction that carries terms the ``--config`` does not (issue 23, 8).
+
+    Replay's ``prediction.csv`` of an augmented model has ``torque_empirical_nm``: its
+    ``torque_pred_nm`` includes those terms.  ``augmented.yaml`` is written on ``--config``,
+    so a config without the same terms lost them (a later replay was 11x worse than
+    reported).  The config's terms are evaluated on the rows as the runner does (causal
+    filter, reset where the stamps go backwards) and must reproduce the column.  Return the
+    config's term names (in the prediction already).
+    """
+    terms = load_model_file(config_path)[1]
+    emp = cols.get(CSV_EMPIRICAL)
+    if emp is None or not np.any(emp != 0.0):
+        return terms.names
+    if not len(terms):
+        raise InputProblem(
+            f"{path}: its {CSV_PREDICTION} includes fitted empirical terms (column "
+            f"{CSV_EMPIRICAL} is not zero), but --config {config_path} has none: pass the "
+            "--config that replay used (e.g. DIR/augmented.yaml), or --recompute-prediction")
+    live = terms.live()
+    t = cols["t_s"]
+    t_run = run_times(t)
+    mine = np.empty(t.size)
+    for i in range(t.size):
+        if i and t[i] < t[i - 1]:
+            live.reset()
+        mine[i] = live.torque_nm(t[i], t_run[i], cols["nut_angle_rad"][i],
+                                 cols["nut_velocity_rad_s"][i], cols["axial_load_n"][i])
+    worst = float(np.max(np.abs(mine - emp)))
+    if worst > EMPIRICAL_MATCH_ABS_NM + EMPIRICAL_MATCH_REL * float(np.sqrt(np.mean(emp ** 2))):
+        raise InputProblem(
+            f"{path}: its {CSV_EMPIRICAL} is not what the terms of --config {config_path} "
+            f"give on its rows (up to {worst:.3g} N m apart): the prediction was made with "
+            "another model file; pass the --config that replay used, or "
+            "--recompute-prediction")
+    return terms.names
+
+
 def csv_events(cols, nut_joint):
     """Yield the events a CSV stands for: each row's axial load, then its nut state."""
     for t, a, w, f in zip(cols["t_s"], cols["nut_angle_rad"], cols["nut_velocity_rad_s"],
@@ -334,6 +395,7 @@ def load_csv(path, config_path, replay_settings=NodeParameters(), recompute=Fals
             raise InputProblem(f"{path}: column {c} has non-finite values (first at line "
                                f"{line})")
     runs = check_time_order(path, cols["t_s"])
+    check_time_advances(path, cols["t_s"])
     accel = cols.get(CSV_ACCELERATION)
     info = {"input": str(path), "format": "csv", "runs": runs,
             "acceleration_source": f"csv column {CSV_ACCELERATION}" if accel is not None
@@ -346,8 +408,9 @@ def load_csv(path, config_path, replay_settings=NodeParameters(), recompute=Fals
                         baseline="zero", base_terms=[])
         else:
             pred = cols[CSV_PREDICTION]
+            base = check_reused_terms(path, cols, config_path)
             info.update(prediction_source=f"csv column {CSV_PREDICTION} (reused)",
-                        base_terms=[])
+                        base_terms=list(base))
             if np.all(pred == 0.0):
                 info["baseline"] = "zero"
         return Recording(cols["t_s"], t_run, cols["nut_angle_rad"],

@@ -30,14 +30,15 @@ import math
 
 import numpy as np
 
+from bb_friction_ros.config import BBFrictionError
 from bb_friction_ros.discrepancy import regimes
 from bb_friction_ros.discrepancy.data import inputs_of
 from bb_friction_ros.discrepancy.selection import ambiguities, candidates, select
 from bb_friction_ros.empirical_terms import filter_lag_s, TermSet, zero_phase_acceleration
-from bb_friction_ros.model_file import read_model_file, write_model_file
+from bb_friction_ros.model_file import physics_of, read_model_file, write_model_file
 
 
-class InsufficientData(ValueError):
+class InsufficientData(BBFrictionError):
     """The recording is too short or too flat to tell effects apart; ``missing`` says why."""
 
     def __init__(self, missing):
@@ -108,6 +109,11 @@ def adequacy(x_fit, n_usable, settings):
     if n_usable < settings.min_samples:
         missing.append(f"too short: {n_usable} usable samples (measured and predicted), "
                        f"need at least {settings.min_samples} (min_samples)")
+        return missing, untested
+    if not float(np.ptp(x_fit.t_s)) > 0.0:
+        # a bag whose stamps never advance (a CSV is refused earlier, naming t_s)
+        missing.append("the time stamps (t_s) never advance in the fit part: no sample "
+                       "period, so no acceleration, time regime or thermal time scale")
         return missing, untested
     w = x_fit.nut_velocity_rad_s
     moving = np.abs(w) > settings.standstill_speed_rad_s
@@ -380,15 +386,23 @@ def write_augmented(path, config_path, terms, zero_baseline=False):
     Write ``augmented.yaml``: the base ``ball_screw`` mapping plus ``empirical_terms``.
 
     Terms already in the base config are kept (the new ones were fitted on top of them).
+    With a zero baseline the terms are the whole torque: the file says ``physics: none``, so
+    replay and the node predict with the terms alone (issue 23, finding 3: adding them to the
+    ball-screw model counted the friction twice), and no base term is kept (the zero
+    prediction held none).
     """
     base, existing = read_model_file(config_path)
+    physics = physics_of(config_path)
     note = ""
     if zero_baseline:
+        existing, physics = TermSet(), "none"
         note = ("# --baseline zero: the terms were fitted to the measured torque alone (no model\n"
-                "# of this screw); they are the whole torque, the ball_screw part is only the\n"
-                "# base config the runner needs.\n")
+                "# of this screw); they are the whole torque.  physics: none makes replay and\n"
+                "# the node predict with the terms alone; the ball_screw part is only the base\n"
+                "# config the runner needs.\n")
     return write_model_file(path, base, TermSet(existing.terms + terms.terms),
-                            AUGMENTED_HEADER + note + f"# base config: {config_path}\n")
+                            AUGMENTED_HEADER + note + f"# base config: {config_path}\n",
+                            physics=None if physics == "ball_screw" else physics)
 
 
 @dataclasses.dataclass
@@ -429,7 +443,8 @@ def validate(a, rec, settings):
                "rmse_after_nm": _rms(meas - pred - added),
                "relative_error_before": rel(meas - pred),
                "relative_error_after": rel(meas - pred - added),
-               "input": rec.info.get("input"), "dropped": dropped,
+               "input": rec.info.get("input"), "baseline": baseline_of(rec),
+               "dropped": dropped,
                "terms": list(a.terms.names)}
     return Validation(rec, added, summary)
 
@@ -443,6 +458,33 @@ def write_validation_csv(path, v):
     np.savetxt(path, table, delimiter=",", fmt="%.17g", comments="",
                header="t_s,torque_meas_nm,torque_pred_nm,torque_augmented_nm")
     return path
+
+
+def baseline_of(rec):
+    """Return the baseline of a recording: "zero" (no model) or "model" (its prediction)."""
+    return rec.info.setdefault("baseline", "model")
+
+
+def check_same_baseline(rec, rec2):
+    """
+    Refuse a validation recording whose baseline differs from the fit recording's (23.4).
+
+    Terms fitted to the whole torque (zero baseline) added to a model's prediction count
+    the friction twice; terms fitted on top of a model, added to a zero prediction, lack it.
+    Before, both ran silently (relative error 1.00 -> 0.814 against 0.20 -> 0.017).
+    """
+    if rec2 is None or baseline_of(rec) == baseline_of(rec2):
+        return
+    from bb_friction_ros.discrepancy.data import InputProblem
+
+    def said(r):
+        return (f"{r.info.get('input')} has baseline {baseline_of(r)} "
+                f"({r.info.get('prediction_source', '?')})")
+    raise InputProblem(
+        f"--validate: the two recordings use different baselines: {said(rec)}, but "
+        f"{said(rec2)}; the terms would be compared with another prediction than they were "
+        "fitted on. Use --baseline zero for both (no model of this screw), or give both the "
+        "model's prediction (a CSV whose torque_pred_nm is 0 counts as zero)")
 
 
 def run_discrepancy(input_path, out, config=None, settings=None, replay_settings=None,
@@ -471,6 +513,7 @@ def run_discrepancy(input_path, out, config=None, settings=None, replay_settings
                 recompute=recompute, progress=progress, baseline=baseline)
     rec = load_recording(input_path, config, **load)
     rec2 = load_recording(validate_path, config, **load) if validate_path else None
+    check_same_baseline(rec, rec2)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     try:
