@@ -38,13 +38,15 @@ import sys
 
 import numpy as np
 
+from bb_friction_ros.config import BBFrictionError
+
 # Motor of the RViMLab rigs (README of the data): nominal torque 9.84 mN m.
 RVIM_NOMINAL_TORQUE_NM = 9.84e-3
 COLUMNS = ("t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n", "torque_meas_nm",
            "torque_pred_nm")
 
 
-class EposFormatError(ValueError):
+class EposFormatError(BBFrictionError):
     """The file is not an EPOS data-recorder export."""
 
 

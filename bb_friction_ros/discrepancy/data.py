@@ -30,7 +30,7 @@ from typing import Optional
 import numpy as np
 
 from bb_friction_ros.bags import BagInput, Event, measured_torque_at, Topics
-from bb_friction_ros.config import bundled_config, ConfigError
+from bb_friction_ros.config import BBFrictionError, bundled_config, ConfigError
 from bb_friction_ros.empirical_terms import Inputs
 from bb_friction_ros.model_file import load_model_file
 from bb_friction_ros.node_parameters import NodeParameters
@@ -58,7 +58,7 @@ MIN_RUN_ROWS = 10
 EVENTS_PER_CHUNK = 65536
 
 
-class InputProblem(ValueError):
+class InputProblem(BBFrictionError):
     """The input cannot be analysed at all (missing file, no measured torque, bad CSV)."""
 
 
@@ -160,7 +160,8 @@ def predict_events(events, config_path, replay_settings, progress=False):
     Return (Packed predictions, runner stats).  The events go through ``replay.run_events``
     a chunk at a time with one runner and assembler, so the result is the same as in one call.
     """
-    runner = build_runner(config_path, replay_settings.model_rate_hz)
+    runner = build_runner(config_path, replay_settings.model_rate_hz,
+                          replay_settings.model_step_deg, replay_settings.max_model_step_deg)
     assembler = InputAssembler(replay_settings.nut_joint, replay_settings.max_axial_load_n)
     packed = Packed()
     for chunk in _chunks(events, progress):

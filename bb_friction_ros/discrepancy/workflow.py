@@ -30,6 +30,7 @@ import math
 
 import numpy as np
 
+from bb_friction_ros.config import BBFrictionError
 from bb_friction_ros.discrepancy import regimes
 from bb_friction_ros.discrepancy.bandwidth import (acceleration_filter_of, choose_cutoff,
                                                    with_acceleration)
@@ -41,7 +42,7 @@ from bb_friction_ros.empirical_terms import filter_lag_s, TermSet
 from bb_friction_ros.model_file import physics_of, read_model_file, write_model_file
 
 
-class InsufficientData(ValueError):
+class InsufficientData(BBFrictionError):
     """The recording is too short or too flat to tell effects apart; ``missing`` says why."""
 
     def __init__(self, missing):
