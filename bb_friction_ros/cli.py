@@ -5,6 +5,7 @@ Commands and their flags are contracts that users script against: add, never ren
 """
 
 import argparse
+import errno
 import json
 import math
 import os
@@ -15,7 +16,11 @@ from bb_friction_ros import __version__
 from bb_friction_ros.ball_screw import cli as screw_cli
 from bb_friction_ros.discrepancy import cli as discrepancy_cli
 from bb_friction_ros.sweep import cli as sweep_cli
-from bb_friction_ros.config import ConfigError, load_linear_bearing
+from bb_friction_ros.config import BBFrictionError, ConfigError, load_linear_bearing
+
+
+# errno values of a write that ran out of room: disk or quota full, file-size limit.
+OUT_OF_SPACE = frozenset((errno.ENOSPC, errno.EDQUOT, errno.EFBIG))
 
 
 def _int_at_least(lo):
@@ -42,7 +47,7 @@ def _positive_float(text):
     return value
 
 
-class OutputPathError(ValueError):
+class OutputPathError(BBFrictionError):
     """An output path that cannot be written; the message names it."""
 
 
@@ -159,7 +164,9 @@ def _add_replay_parser(sub):
     p.add_argument("--params-file", help="the node's ROS params file: nut_joint, "
                    "model_rate_hz, max_axial_load_n (and config_file) are taken from it")
     p.add_argument("--nut-joint", help="joint name in nut_state (overrides the params file)")
-    p.add_argument("--model-rate-hz", type=float, help="model steps per second of input time")
+    p.add_argument("--model-rate-hz", type=float, help="least model steps per second of input "
+                   "time (the floor when the nut creeps or stands)")
+    p.add_argument("--model-step-deg", type=float, help="nut rotation between model steps")
     Topics.add_arguments(p)
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--no-bag", action="store_true", help="write no output bag (DIR/bag/), "
@@ -182,6 +189,8 @@ def _replay_settings(args):
         changes["nut_joint"] = args.nut_joint
     if args.model_rate_hz is not None:
         changes["model_rate_hz"] = args.model_rate_hz
+    if getattr(args, "model_step_deg", None) is not None:
+        changes["model_step_deg"] = args.model_step_deg
     return node_parameters(changes, *([settings] if settings else []))
 
 
@@ -193,7 +202,7 @@ def _run_replay(args):
         summary = replay(args.bag, args.out, config=args.config, settings=settings,
                          topics=Topics.from_args(args), progress=not args.no_progress,
                          write_bag=not args.no_bag)
-    except (FileNotFoundError, ValueError) as exc:   # BagError, NothingAccepted included
+    except (FileNotFoundError, BBFrictionError) as exc:   # BagError, NothingAccepted included
         print(f"bb-friction replay: {exc}", file=sys.stderr)
         return 2
     print(json.dumps({k: summary[k] for k in ("samples", "rejected", "nonconverged_steps",
@@ -262,9 +271,10 @@ def _run_demo(args):
     import os
     from pathlib import Path
     from bb_friction_ros.demo import run_demo
+    from bb_friction_ros.interface import local_domain_id
     # DDS stays on this machine, on a domain of this run's own (set before rclpy.init).
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    os.environ.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 101))
+    os.environ.setdefault("ROS_DOMAIN_ID", str(local_domain_id()))
     return run_demo(Path(args.out), _demo_events(), speed=args.speed)
 
 
@@ -303,12 +313,21 @@ def main(argv=None):
     except ConfigError as exc:
         print(f"bb-friction: config error: {exc}", file=sys.stderr)
         return 2
+    except BBFrictionError as exc:
+        # Bad user input of any kind (one base class): the message, no traceback.  Any other
+        # exception, a ValueError from numpy included, is a bug and keeps its traceback.
+        print(f"bb-friction {args.command}: {exc}", file=sys.stderr)
+        return 2
     except OSError as exc:
-        if exc.filename is None:
+        where = exc.filename
+        if where is None and exc.errno in OUT_OF_SPACE and getattr(args, "out", None):
+            # A write() on an open file fails without a filename (issue 23 finding 14):
+            # the run's output directory is where the space ran out.
+            where = args.out
+        if where is None:
             raise
         # Disk full, permissions changed mid-run, ...: name the file, no traceback.
-        print(f"bb-friction {args.command}: {exc.filename}: {exc.strerror or exc}",
-              file=sys.stderr)
+        print(f"bb-friction {args.command}: {where}: {exc.strerror or exc}", file=sys.stderr)
         return 2
 
 

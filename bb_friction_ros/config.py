@@ -10,13 +10,27 @@ with the dotted key and the reason.
 
 import dataclasses
 import math
+import os
 from pathlib import Path
+import stat
 import warnings
 
 import yaml
 
 
-class ConfigError(ValueError):
+class BBFrictionError(ValueError):
+    """
+    Bad input from the user: a file, flag, recording or message that cannot be used as given.
+
+    The parent of every input error of the package (``ConfigError``, ``BagError``,
+    ``InputProblem``, ``InsufficientData``, ``InputError``, ``OutputPathError``, ...).  The
+    CLI turns these, and only these, into exit status 2 with the message; any other exception
+    is a bug and keeps its traceback (exit 1).  A ``ValueError`` so that callers catching
+    ``ValueError`` keep working.
+    """
+
+
+class ConfigError(BBFrictionError):
     """A configuration value is missing, unknown or out of range; message names the key."""
 
 
@@ -227,20 +241,57 @@ class _StrictLoader(yaml.SafeLoader):
         return super().construct_mapping(node, deep=deep)
 
 
+# Largest config, model, params or sweep file read [bytes].  The bundled ones are 1-3 kB and
+# a model file with every empirical term is a few kB; 4 MiB leaves room for long sweep value
+# lists while `--config /dev/zero` or a mistaken recording can no longer be read until
+# memory runs out (issue 23 #15).
+MAX_CONFIG_BYTES = 4 * 2**20
+
+_FILE_KINDS = ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
+               (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+               (stat.S_ISSOCK, "a socket"))
+
+
+def read_config_text(path, max_bytes=MAX_CONFIG_BYTES):
+    """
+    Return the text of a config file; ConfigError naming the file if it is not one.
+
+    Refused: a missing or unreadable path, anything but a regular file (a FIFO would block
+    the reader, ``/dev/zero`` never ends), a file larger than ``max_bytes``, and one that is
+    not UTF-8 text.  The file is opened non-blocking and checked with ``fstat`` on the open
+    descriptor, so a FIFO is never waited on and nothing can swap the file in between.
+    """
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read config ({exc.strerror})") from exc
+    mode = os.fstat(fd).st_mode
+    if not stat.S_ISREG(mode):
+        os.close(fd)
+        kind = next((name for test, name in _FILE_KINDS if test(mode)), "not a file")
+        raise ConfigError(f"{path}: is {kind}, not a regular file; a config must be a file")
+    with os.fdopen(fd, "rb") as fh:
+        try:
+            data = fh.read(max_bytes + 1)
+        except OSError as exc:
+            raise ConfigError(f"{path}: cannot read config ({exc.strerror})") from exc
+    if len(data) > max_bytes:
+        raise ConfigError(f"{path}: larger than {format_bytes(max_bytes)}; not a config file")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"{path}: not a text file (not UTF-8 at byte {exc.start})") from exc
+
+
 def load_yaml(path):
     """
     Read a YAML file (safe types only); a problem with it is a ConfigError naming the file.
 
-    Refused: a missing or unreadable file, one that is not text, a syntax error, a key given
-    twice in one mapping, and a top level that is not a mapping.  An empty file gives {}.
+    Refused: a missing or unreadable file, anything but a regular file, one larger than
+    ``MAX_CONFIG_BYTES``, one that is not text, a syntax error, a key given twice in one
+    mapping, and a top level that is not a mapping.  An empty file gives {}.
     """
-    p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read config ({exc.strerror})") from exc
-    except UnicodeDecodeError as exc:
-        raise ConfigError(f"{path}: not a text file (not UTF-8 at byte {exc.start})") from exc
+    text = read_config_text(path)
     try:
         data = yaml.load(text, Loader=_StrictLoader)
     except yaml.YAMLError as exc:

@@ -187,7 +187,7 @@ def reproduce_theta_amplitude(out, coarse=False):
     """
     cfg = load_ball_screw()
     t0 = time.perf_counter()
-    rows = ta.run_theta_sweep(out / "theta_amplitude_sweep", coarse=coarse)
+    rows = ta.run_theta_sweep(coarse=coarse)
     wall = time.perf_counter() - t0
     config_deg = math.degrees(cfg.errors.theta_amplitude_rad)
     out_rows = []

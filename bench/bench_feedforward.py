@@ -68,9 +68,10 @@ def profiled(runner, stream, horizon, points, transport_s, fixed_latency_s=None)
     return preds, profiles
 
 
-def interpolate(stream, profiles, scale_with_load):
+def interpolate(stream, profiles, scale_with_load, max_axial_load_n=None):
     """The controller's torque at every sample from the newest profile it would have."""
-    ff = FeedforwardInterpolator(scale_with_load=scale_with_load)
+    ff = FeedforwardInterpolator(scale_with_load=scale_with_load,
+                                 max_axial_load_n=max_axial_load_n)
     out, j = [], 0
     for s in stream:
         while j < len(profiles) and profiles[j][0] <= s.stamp_s:
@@ -118,7 +119,8 @@ def main():
         b2b_rms = float(np.sqrt(np.mean(np.array([p.torque_b2b_nm for p in truth])[keep] ** 2)))
         est = {"a": np.array([p.torque_total_nm for p in zoh])[keep],
                "b": interpolate(stream, prof_b, False)[keep],
-               "c": interpolate(stream, prof_c, True)[keep]}
+               "c": interpolate(stream, prof_c, True,
+                                node_runner.screw.max_axial_load_n)[keep]}
         rms = {k: float(np.sqrt(np.mean((v - ref) ** 2))) for k, v in est.items()}
         at_step = np.array([p.stepped for p in zoh])[keep]
         rms["floor"] = float(np.sqrt(np.mean((est["a"] - ref)[at_step] ** 2)))

@@ -97,3 +97,111 @@ def test_bad_numeric_flags_refused_by_name(argv, flag, tmp_path, capsys):
     assert exc.value.code == 2
     assert f"argument {flag}" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+# --- issue 22 item 4 and issue 23 finding 14: one error base, real disk-full failures ------
+
+# Runs the CLI in a child whose file-size limit makes a write fail mid-run as a full disk does
+# (EFBIG from write(), no filename on the error).  SIGXFSZ is ignored so the write returns an
+# error instead of killing the process.
+_LIMITED_CLI = """
+import resource, signal, sys
+signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+from bb_friction_ros.cli import main
+limit = int(sys.argv[1])
+resource.setrlimit(resource.RLIMIT_FSIZE, (limit, resource.RLIM_INFINITY))
+sys.exit(main(sys.argv[2:]))
+"""
+# Small enough that the outputs do not fit (prediction.csv of 2000 samples is ~300 kB),
+# large enough for anything written before them.
+FILE_SIZE_LIMIT_B = 48 * 1024
+
+
+@pytest.fixture(scope="module")
+def long_bag(tmp_path_factory):
+    """A 2 s reversing recording at 1 kHz with a measured torque (2000 nut_state samples)."""
+    from bb_friction_ros.bags import write_events
+    from recordings import short_recording
+    bag = tmp_path_factory.mktemp("disk") / "bag"
+    write_events(bag, short_recording(state_rate_hz=1000.0, segment_s=1.0))
+    return bag
+
+
+@pytest.mark.parametrize("args, limit", [
+    (["replay", "BAG", "--no-progress"], FILE_SIZE_LIMIT_B),
+    (["replay", "BAG", "--no-progress", "--no-bag"], FILE_SIZE_LIMIT_B),
+    (["discrepancy", "BAG", "--no-progress"], FILE_SIZE_LIMIT_B),            # the PNGs
+    (["discrepancy", "BAG", "--no-progress", "--no-plots"], 8 * 1024)],     # summary.json
+    ids=["replay", "replay-no-bag", "discrepancy", "discrepancy-no-plots"])
+def test_disk_full_mid_run_exits_2_naming_the_output_directory(args, limit, long_bag,
+                                                               tmp_path):
+    """A write that really fails (file-size limit) is exit 2 naming --out, no traceback."""
+    import subprocess
+    import sys
+    out = tmp_path / "out"
+    argv = [str(long_bag) if a == "BAG" else a for a in args] + ["--out", str(out)]
+    run = subprocess.run([sys.executable, "-c", _LIMITED_CLI, str(limit)] + argv,
+                         capture_output=True, text=True, timeout=600)
+    assert run.returncode == 2, run.stderr
+    assert "Traceback" not in run.stderr
+    # EFBIG's text: the limit really bit (a partly written file may be removed by an
+    # atomic writer, so the file sizes prove nothing)
+    assert str(out) in run.stderr and "File too large" in run.stderr
+
+
+def test_the_same_run_without_the_limit_succeeds(long_bag, tmp_path):
+    """Control for the test above: with no file-size limit the same replay exits 0."""
+    import subprocess
+    import sys
+    import resource
+    run = subprocess.run([sys.executable, "-c", _LIMITED_CLI, str(resource.RLIM_INFINITY),
+                          "replay", str(long_bag), "--no-progress", "--out",
+                          str(tmp_path / "out")], capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr
+
+
+def test_a_bug_in_a_cli_path_shows_a_traceback_and_exits_1(tmp_path, monkeypatch):
+    """A ValueError that is not bad user input (a bug) is not turned into exit 2."""
+    import subprocess
+    import sys
+    code = ("import sys, numpy as np\n"
+            "from bb_friction_ros import replay\n"
+            "def buggy(*a, **k):\n"
+            "    np.zeros(3) + np.zeros(4)   # a numpy ValueError: a bug, not bad input\n"
+            "replay.replay = buggy\n"
+            "from bb_friction_ros.cli import main\n"
+            "sys.exit(main(sys.argv[1:]))\n")
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    run = subprocess.run([sys.executable, "-c", code, "replay", str(bag), "--out",
+                          str(tmp_path / "out")], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 1, run.stderr
+    assert "Traceback" in run.stderr and "operands could not be broadcast" in run.stderr
+
+
+def test_every_input_error_is_a_bbfriction_error():
+    """The CLI's exit-2 rule covers every input error class of the package (one base)."""
+    from bb_friction_ros.bags import BagError
+    from bb_friction_ros.cli import OutputPathError
+    from bb_friction_ros.config import BBFrictionError, ConfigError
+    from bb_friction_ros.discrepancy.data import InputProblem
+    from bb_friction_ros.discrepancy.workflow import InsufficientData
+    from bb_friction_ros.replay import NothingAccepted
+    from bb_friction_ros.runner import InputError
+    for cls in (BagError, OutputPathError, ConfigError, InputProblem, InsufficientData,
+                NothingAccepted, InputError):
+        assert issubclass(cls, BBFrictionError), cls
+    assert issubclass(BBFrictionError, ValueError)   # callers catching ValueError still do
+
+
+def test_an_input_error_in_a_cli_path_exits_2_with_its_message(tmp_path, monkeypatch, capsys):
+    """Any BBFrictionError raised under a command (not only ConfigError) is exit 2."""
+    from bb_friction_ros.ball_screw import simulation
+    from bb_friction_ros.config import BBFrictionError
+
+    def bad_input(*args, **kwargs):
+        raise BBFrictionError("x.csv: column t_s never advances")
+    monkeypatch.setattr(simulation, "write_outputs", bad_input)
+    assert main(["screw-sim", "--steps", "1", "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "x.csv: column t_s never advances" in err and "Traceback" not in err

@@ -115,3 +115,119 @@ def test_one_edge_unit_parser():
     for bad in (True, "fast", None, [1]):
         with pytest.raises(ConfigError, match="k: expected a number"):
             parse_number(bad, "k")
+
+
+# --- issue 23 #11: more balls than fit on the track ----------------------------------------
+
+def _crowded_track(tmp_path, n_balls=40):
+    path = tmp_path / "crowded.yaml"
+    path.write_text(f"ball_screw:\n  track:\n    n_balls: {n_balls}\n")
+    return path
+
+
+def test_more_balls_than_fit_is_refused_at_validation(tmp_path):
+    """Two turns hold 37 balls of Table 4 (37.84 B2B separations); 38 and 40 are refused."""
+    from bb_friction_ros.ball_screw.geometry import b2b_contact_separation
+    from bb_friction_ros.ball_screw.parameters import ScrewGeometry
+    from bb_friction_ros.model_file import load_ball_screw
+    g = ScrewGeometry()
+    capacity = 4.0 * math.pi / b2b_contact_separation(g.ball_radius_m, g.lead_m,
+                                                      g.pitch_radius_m)
+    assert 37 < capacity < 38
+    assert load_ball_screw(_crowded_track(tmp_path, 37)).track.n_balls == 37
+    for n in (38, 40):
+        with pytest.raises(ConfigError, match=r"ball_screw\.track\.n_balls: .*at most 37 fit"):
+            load_ball_screw(_crowded_track(tmp_path, n))
+    with pytest.raises(ConfigError, match=r"761\.1 deg of track"):
+        load_ball_screw(_crowded_track(tmp_path, 40))
+    # more turns make room
+    assert load_ball_screw(overrides={"track": {"n_balls": 40, "loaded_turns": 2.5}})
+
+
+def test_more_balls_than_fit_exits_2_everywhere(tmp_path, capsys, ros_context):
+    """screw-sim, replay and friction_node refuse it naming the key: exit 2, no traceback."""
+    from bb_friction_ros.bags import write_events
+    from bb_friction_ros.cli import main
+    from bb_friction_ros.node import main as node_main
+    from recordings import short_recording
+    path = _crowded_track(tmp_path)
+    write_events(tmp_path / "bag", short_recording())
+    params = tmp_path / "params.yaml"
+    params.write_text(f"friction_node:\n  ros__parameters:\n    config_file: '{path}'\n")
+    runs = {
+        "screw-sim": lambda: main(["screw-sim", "--config", str(path),
+                                   "--out", str(tmp_path / "sim")]),
+        "replay": lambda: main(["replay", str(tmp_path / "bag"), "--config", str(path),
+                                "--out", str(tmp_path / "rep"), "--no-progress"]),
+        "friction_node": lambda: node_main(["friction_node", "--ros-args", "--params-file",
+                                            str(params)]),
+    }
+    for name, run in runs.items():
+        assert run() == 2, name
+        err = capsys.readouterr().err
+        assert "ball_screw.track.n_balls" in err and "Traceback" not in err, (name, err)
+
+
+# --- issue 23 #15: config files must be regular files of bounded size ----------------------
+
+def test_oversized_config_is_refused_naming_the_file(tmp_path):
+    """A 5 MiB file (a YAML comment: valid and empty) is refused, not read as no settings."""
+    from bb_friction_ros.config import MAX_CONFIG_BYTES, load_yaml
+    big = tmp_path / "big.yaml"
+    big.write_text("# " + "x" * (MAX_CONFIG_BYTES + 1) + "\n")
+    with pytest.raises(ConfigError, match=re.escape(f"{big}: larger than 4 MiB")):
+        load_yaml(big)
+    fits = tmp_path / "fits.yaml"
+    fits.write_text("# " + "x" * (MAX_CONFIG_BYTES - 10) + "\n")
+    assert load_yaml(fits) == {}
+
+
+def test_fifo_config_is_refused_without_blocking(tmp_path):
+    """A FIFO as --config is refused at once; without the check the reader would block."""
+    import os
+    import threading
+    from bb_friction_ros.config import load_yaml
+    fifo = tmp_path / "pipe.yaml"
+    os.mkfifo(fifo)
+    outcome = []
+
+    def read():
+        try:
+            load_yaml(fifo)
+            outcome.append("read")
+        except ConfigError as exc:
+            outcome.append(str(exc))
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    reader.join(10.0)
+    if reader.is_alive():           # blocked: give it an EOF so that the thread ends
+        os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
+        reader.join(10.0)
+        pytest.fail("load_yaml blocked on a FIFO")
+    assert outcome == [f"{fifo}: is a FIFO (named pipe), not a regular file; a config must "
+                       "be a file"]
+
+
+@pytest.mark.parametrize("target,kind", [("/dev/zero", "a character device"),
+                                         (None, "a directory")])
+def test_device_or_directory_config_exits_2_naming_it(tmp_path, target, kind):
+    """`--config /dev/zero` was read until memory ran out; now refused at once (exit 2).
+
+    Run in a child with its address space capped at 4 GiB, so that a regression fails
+    (MemoryError) instead of exhausting the machine.
+    """
+    import resource
+    import subprocess
+    import sys
+    target = target or str(tmp_path)
+
+    def cap():
+        resource.setrlimit(resource.RLIMIT_AS, (4 * 2**30, 4 * 2**30))
+
+    proc = subprocess.run([sys.executable, "-m", "bb_friction_ros.cli", "screw-sim",
+                           "--config", target, "--out", str(tmp_path / "sim")],
+                          capture_output=True, text=True, timeout=300, preexec_fn=cap)
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    assert f"{target}: is {kind}, not a regular file" in proc.stderr
+    assert "Traceback" not in proc.stderr

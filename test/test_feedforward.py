@@ -37,7 +37,9 @@ def test_profile_starts_at_the_prediction_and_is_monotonic(runner, omega):
         if pred.stepped:
             prof = look_ahead_profile(runner.profile_seed(s), 2.0, 4)
             profiles.append((pred, prof))
-    assert len(profiles) == 6                     # 60 ms of input at a 100 Hz model
+    # 60 ms of 1 kHz input: a step every model_step_deg of rotation, at least every 10 ms
+    every = min(10, round(runner.step_rad / (abs(omega) / 1000.0)))
+    assert len(profiles) == len(range(0, 60, every))
     for pred, (angles, torques, converged) in profiles:
         assert converged and pred.converged
         assert angles[0] == pred.nut_angle_rad
@@ -157,10 +159,92 @@ def test_interpolator_refuses_malformed_profiles(angles, torques, omega):
 
 
 def test_interpolator_load_scaling():
-    ff = FeedforwardInterpolator(scale_with_load=True)
+    ff = FeedforwardInterpolator(scale_with_load=True, max_axial_load_n=10200.0)
     ff.set_profile([0.0, 0.1], [1.0, 3.0], 5.0, 1000.0, True)
     assert ff.torque_at(0.05, 5.0, 1500.0) == pytest.approx(3.0, rel=1e-15)
     assert ff.torque_at(0.05, 5.0, -1500.0) == pytest.approx(2.0, rel=1e-15)  # other flank
+
+
+# --- hostile numbers (issue 23, findings 5 and 22) -----------------------------------------
+
+NAN, INF = float("nan"), float("inf")
+
+
+@pytest.mark.parametrize("angles,torques,omega,load,what", [
+    ([0.0, NAN, 0.2], [1.0, 1.0, 1.0], 5.0, 1000.0, "nut_angle_rad[1]"),   # passes "<= 0"
+    ([NAN, 0.1], [1.0, 1.0], 5.0, 1000.0, "nut_angle_rad[0]"),
+    ([0.0, INF], [1.0, 1.0], 5.0, 1000.0, "nut_angle_rad[1]"),
+    ([0.0, 0.1], [1.0, NAN], 5.0, 1000.0, "torque_total_nm[1]"),
+    ([0.0, 0.1], [-INF, 1.0], 5.0, 1000.0, "torque_total_nm[0]"),
+    ([0.0, 0.1], [1.0, 1.0], NAN, 1000.0, "nut_velocity_rad_s"),
+    ([0.0, 0.1], [1.0, 1.0], 5.0, INF, "axial_load_n"),
+    ([NAN], [0.0], 0.0, 1000.0, "nut_angle_rad[0]"),
+])
+def test_non_finite_profile_is_refused_and_the_old_one_kept(angles, torques, omega, load, what):
+    ff = FeedforwardInterpolator()
+    ff.set_profile([0.0, 0.1], [1.0, 3.0], 5.0, 1000.0, True)
+    with pytest.raises(ValueError, match=r"profile: " + what.replace("[", r"\[")):
+        ff.set_profile(angles, torques, omega, load, True)
+    assert ff.torque_at(0.05, 5.0) == pytest.approx(2.0)    # the previous profile
+
+
+@pytest.mark.parametrize("angle,omega,load", [
+    (NAN, 5.0, 1000.0), (INF, 5.0, 1000.0), (0.05, NAN, 1000.0), (0.05, -INF, 1000.0),
+    (0.05, 5.0, INF), (0.05, 5.0, NAN), (NAN, None, None),
+])
+def test_non_finite_measurement_gives_zero_with_its_own_status(angle, omega, load):
+    ff = FeedforwardInterpolator(scale_with_load=True, max_axial_load_n=10200.0)
+    ff.set_profile([0.0, 0.1], [1.0, 3.0], 5.0, 1000.0, True)
+    torque = ff.torque_at(angle, omega, load)
+    assert torque == 0.0 and ff.status == "invalid_input"
+    assert ff.torque_at(0.05, 5.0, 1000.0) == pytest.approx(2.0) and ff.status == "inside"
+
+
+def test_load_scale_is_bounded_by_the_model_load_range():
+    """1e5 N on a 1500 N profile scales by 10200/1500 = 6.8, not 66.7; counted."""
+    ff = FeedforwardInterpolator(scale_with_load=True, max_axial_load_n=10200.0)
+    ff.set_profile([0.0, 0.1], [1.0, 1.0], 5.0, 1500.0, True)
+    assert ff.torque_at(0.05, 5.0, 1.0e5) == pytest.approx(10200.0 / 1500.0, rel=1e-15)
+    assert ff.torque_at(0.05, 5.0, 1.0e300) == pytest.approx(6.8, rel=1e-15)
+    assert ff.load_capped == 2
+    assert ff.torque_at(0.05, 5.0, 3000.0) == pytest.approx(2.0, rel=1e-15)   # in range
+    assert ff.load_capped == 2
+    with pytest.raises(ValueError, match="max_axial_load_n"):
+        FeedforwardInterpolator(scale_with_load=True)
+    with pytest.raises(ValueError, match="max_axial_load_n"):
+        FeedforwardInterpolator(scale_with_load=True, max_axial_load_n=NAN)
+
+
+def test_the_load_range_of_the_paper_screw_bounds_the_scale(runner):
+    """The bound a node user passes: the whole-screw model's own range (10.2 kN, Table 4)."""
+    w_max = runner.screw.max_axial_load_n
+    assert 9.0e3 < w_max < 11.0e3
+    ff = FeedforwardInterpolator(scale_with_load=True, max_axial_load_n=w_max)
+    ff.set_profile([0.0, 0.1], [0.2, 0.2], 5.0, W_LOAD_N, True)
+    assert ff.torque_at(0.05, 5.0, 1.0e5) == pytest.approx(0.2 * w_max / W_LOAD_N, rel=1e-12)
+
+
+def test_stale_profile_expires():
+    """With max_profile_age_s, a profile older (or further ahead) than that gives 0 N m."""
+    ff = FeedforwardInterpolator(max_profile_age_s=0.05)
+    assert ff.torque_at(0.05, 5.0, now_s=100.0) == 0.0 and ff.status == "empty"
+    ff.set_profile([0.0, 0.1], [1.0, 3.0], 5.0, 1000.0, True, stamp_s=100.0)
+    assert ff.torque_at(0.05, 5.0, now_s=100.04) == pytest.approx(2.0)
+    assert ff.status == "inside"
+    assert ff.torque_at(0.05, 5.0, now_s=100.06) == 0.0 and ff.status == "stale"
+    assert ff.torque_at(0.05, 5.0, now_s=1.0e4) == 0.0 and ff.status == "stale"
+    assert ff.torque_at(0.05, 5.0, now_s=99.9) == 0.0 and ff.status == "stale"
+    ff.set_profile([0.0, 0.1], [1.0, 3.0], 5.0, 1000.0, True, stamp_s=100.06)
+    assert ff.torque_at(0.05, 5.0, now_s=100.06) == pytest.approx(2.0)
+    # the clock is required, and so is a stamp on each profile
+    with pytest.raises(ValueError, match="now_s"):
+        ff.torque_at(0.05, 5.0)
+    with pytest.raises(ValueError, match="stamp_s"):
+        ff.set_profile([0.0, 0.1], [1.0, 3.0], 5.0, 1000.0, True)
+    # without max_profile_age_s, nothing expires (the documented default)
+    plain = FeedforwardInterpolator()
+    plain.set_profile([0.0, 0.1], [1.0, 3.0], 5.0, 1000.0, True, stamp_s=100.0)
+    assert plain.torque_at(0.05, 5.0, now_s=1.0e6) == pytest.approx(2.0)
 
 
 def test_interpolator_takes_the_message(ros_context):

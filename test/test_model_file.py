@@ -54,7 +54,7 @@ def test_flat_file_with_terms(tmp_path):
      "line 3: key 'track' given twice"),
     ("ball_screw:\n  solver:\n    map_polar_nodes: 160.5\n",
      "ball_screw.solver.map_polar_nodes: must be an integer"),
-    ("ball_screw: {}\nempirical_terms: {name: seal_drag}\n",
+    ("ball_screw: {track: {n_balls: 30}}\nempirical_terms: {name: seal_drag}\n",
      "empirical_terms: expected a list"),
 ])
 def test_badly_shaped_model_file_is_refused_by_name(tmp_path, text, needle):
@@ -76,3 +76,26 @@ def test_exponent_string_with_edge_unit(tmp_path):
     p = tmp_path / "m.yaml"
     p.write_text("ball_screw:\n  operation: {module_theta2_deg: 2e0}\n")
     assert load_ball_screw(p).operation.module_theta2_rad == pytest.approx(0.0349065850398866)
+
+
+@pytest.mark.parametrize("text", [
+    "", "\n# only a comment\n", "ball_screw:\n", "ball_screw: {}\n", "ball_screw: null\n",
+    "empirical_terms:\n  - {name: seal_drag, params: {torque_nm: 0.01}}\n",
+    "ball_screw:\nempirical_terms:\n  - {name: seal_drag, params: {torque_nm: 0.01}}\n",
+])
+def test_model_file_without_ball_screw_values_is_refused(tmp_path, text):
+    """Issue 23 finding 9: an empty or truncated model file ran silently as the paper's screw."""
+    p = tmp_path / "truncated.yaml"
+    p.write_text(text)
+    for load in (load_model_file, load_ball_screw):
+        with pytest.raises(ConfigError, match=re.escape(f"{p}: no ball-screw values")):
+            load(p)
+
+
+def test_truncated_config_refused_by_replay_and_node_runner(tmp_path):
+    """The runner the node and replay build refuses it too, naming the file."""
+    from bb_friction_ros.runner import build_runner
+    p = tmp_path / "ball_screw.yaml"
+    p.write_text("ball_screw:\n")
+    with pytest.raises(ConfigError, match=re.escape(str(p))):
+        build_runner(p, 100.0)

@@ -38,13 +38,15 @@ import sys
 
 import numpy as np
 
+from bb_friction_ros.config import BBFrictionError
+
 # Motor of the RViMLab rigs (README of the data): nominal torque 9.84 mN m.
 RVIM_NOMINAL_TORQUE_NM = 9.84e-3
 COLUMNS = ("t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n", "torque_meas_nm",
            "torque_pred_nm")
 
 
-class EposFormatError(ValueError):
+class EposFormatError(BBFrictionError):
     """The file is not an EPOS data-recorder export."""
 
 
@@ -88,9 +90,34 @@ def read_epos(path):
     return np.array(t), np.array(w), np.array(q), skipped
 
 
+def positive_finite(text):
+    """argparse type: a finite number > 0 (a nominal torque: <= 0 would flip or zero the sign)."""
+    value = float(text)
+    if not (math.isfinite(value) and value > 0.0):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text!r}")
+    return value
+
+
+def finite(text):
+    """argparse type: a finite number (NaN or inf would poison every row of the CSV)."""
+    value = float(text)
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
+    return value
+
+
 def to_si(t_s, rpm, pct, nominal_torque_nm=RVIM_NOMINAL_TORQUE_NM, raw_sign=False,
           axial_load_n=0.0):
-    """Return the workflow's columns (dict of arrays) of one run."""
+    """
+    Return the workflow's columns (dict of arrays) of one run.
+
+    Raises ValueError naming the argument if ``nominal_torque_nm`` is not finite and > 0
+    (a negative value would flip the torque's sign silently) or ``axial_load_n`` is not finite.
+    """
+    if not (math.isfinite(nominal_torque_nm) and nominal_torque_nm > 0.0):
+        raise ValueError(f"nominal_torque_nm must be a finite number > 0, got {nominal_torque_nm}")
+    if not math.isfinite(axial_load_n):
+        raise ValueError(f"axial_load_n must be a finite number, got {axial_load_n}")
     sign = 1.0 if raw_sign else -1.0
     w = sign * rpm * math.pi / 30.0
     torque = sign * pct * nominal_torque_nm / 100.0
@@ -224,9 +251,9 @@ def main(argv=None):
     ap.add_argument("--rvim", metavar="DRIVE_DIR", help="an RViMLab drive directory "
                     "(raw/experiments/driveNoN): writes fit.csv and validate.csv to --out-dir")
     ap.add_argument("--out-dir", help="output directory (with --rvim)")
-    ap.add_argument("--nominal-torque-nm", type=float, default=RVIM_NOMINAL_TORQUE_NM,
+    ap.add_argument("--nominal-torque-nm", type=positive_finite, default=RVIM_NOMINAL_TORQUE_NM,
                     help="motor nominal torque [N m] (100 %% of the torque channel)")
-    ap.add_argument("--axial-load-n", type=float, default=0.0,
+    ap.add_argument("--axial-load-n", type=finite, default=0.0,
                     help="constant axial load written to axial_load_n [N]")
     ap.add_argument("--raw-sign", action="store_true",
                     help="keep the recorder's sign (default: the authors' convention, negated)")

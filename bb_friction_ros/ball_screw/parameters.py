@@ -10,6 +10,7 @@ import dataclasses
 import math
 from typing import ClassVar
 
+from bb_friction_ros.ball_screw.geometry import b2b_contact_separation
 from bb_friction_ros.config import MEMORY_LIMIT_MIB, ConfigError, check_memory, field
 
 _DEG = math.pi / 180.0
@@ -238,8 +239,22 @@ class BallScrewConfig:
     load_distribution: str = dataclasses.field(default="rigid")
 
     def check(self, path):
-        """``load_distribution`` is one of the named models."""
+        """``load_distribution`` is one of the named models; the balls fit on the track."""
         if self.load_distribution not in LOAD_DISTRIBUTIONS:
             raise ConfigError(f"{path}.load_distribution: must be one of "
                               f"{', '.join(LOAD_DISTRIBUTIONS)}, got "
                               f"{self.load_distribution!r}")
+        # Touching balls sit one B2B separation apart (Eq. 56 on the exact helix); the
+        # closed loop is loaded_turns turns long.  Checked here, not first in the model's
+        # constructor, so that every entry point (replay, node, screw-sim) refuses it at
+        # load with the key (issue 23 #11: the node and screw-sim crashed with a traceback).
+        g, tr = self.geometry, self.track
+        separation = b2b_contact_separation(g.ball_radius_m, g.lead_m, g.pitch_radius_m)
+        loop = 2.0 * math.pi * tr.loaded_turns
+        if tr.n_balls * separation >= loop:
+            fit = math.ceil(loop / separation) - 1
+            raise ConfigError(
+                f"{path}.track.n_balls: {tr.n_balls} balls need "
+                f"{math.degrees(tr.n_balls * separation):.1f} deg of track, more than the "
+                f"{math.degrees(loop):.1f} deg of {path}.track.loaded_turns = "
+                f"{tr.loaded_turns:g}; at most {fit} fit")

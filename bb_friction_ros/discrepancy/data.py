@@ -30,7 +30,7 @@ from typing import Optional
 import numpy as np
 
 from bb_friction_ros.bags import BagInput, Event, measured_torque_at, Topics
-from bb_friction_ros.config import bundled_config, ConfigError
+from bb_friction_ros.config import BBFrictionError, bundled_config, ConfigError
 from bb_friction_ros.empirical_terms import Inputs
 from bb_friction_ros.model_file import load_model_file
 from bb_friction_ros.node_parameters import NodeParameters
@@ -41,6 +41,18 @@ CSV_REQUIRED = ("t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n",
                 "torque_meas_nm")
 CSV_PREDICTION = "torque_pred_nm"
 CSV_ACCELERATION = "nut_accel_rad_s2"
+# replay's prediction.csv of a model with fitted terms: the terms' share of torque_pred_nm
+CSV_EMPIRICAL = "torque_empirical_nm"
+# issue 19: most users log the motor current, not the torque; with --torque-constant-nm-per-a
+# K the measured torque is K times it
+CSV_CURRENT = "motor_current_a"
+CURRENT_FLAG = "--torque-constant-nm-per-a"
+CURRENT_TOPIC = "motor_current"
+# How closely the --config's terms, evaluated on the CSV rows as the runner does, must
+# reproduce its torque_empirical_nm: replay writes it with repr (exact), so only rounding
+# of a re-saved file [N m] and a relative share of its RMS separate the two.
+EMPIRICAL_MATCH_ABS_NM = 1e-6
+EMPIRICAL_MATCH_REL = 1e-3
 # Rows a run of a multi-run CSV needs: fewer between two backward steps of t_s is not a run
 # but rows out of order (a shuffled or reversed file).
 MIN_RUN_ROWS = 10
@@ -51,7 +63,7 @@ MIN_RUN_ROWS = 10
 EVENTS_PER_CHUNK = 65536
 
 
-class InputProblem(ValueError):
+class InputProblem(BBFrictionError):
     """The input cannot be analysed at all (missing file, no measured torque, bad CSV)."""
 
 
@@ -153,7 +165,8 @@ def predict_events(events, config_path, replay_settings, progress=False):
     Return (Packed predictions, runner stats).  The events go through ``replay.run_events``
     a chunk at a time with one runner and assembler, so the result is the same as in one call.
     """
-    runner = build_runner(config_path, replay_settings.model_rate_hz)
+    runner = build_runner(config_path, replay_settings.model_rate_hz,
+                          replay_settings.model_step_deg, replay_settings.max_model_step_deg)
     assembler = InputAssembler(replay_settings.nut_joint, replay_settings.max_axial_load_n)
     packed = Packed()
     for chunk in _chunks(events, progress):
@@ -204,23 +217,76 @@ def _split_measured(events, stamps, values):
 
 
 def load_bag(path, config_path, replay_settings=NodeParameters(), topics=Topics(),
-             progress=False, baseline="model"):
+             progress=False, baseline="model", current=None):
     """
     Read a rosbag2, predict through the replay path, align the measured torque.
 
     The bag is streamed: inputs go through the model as they are read, and predictions and
-    measurements are kept as packed float columns only.
+    measurements are kept as packed float columns only.  ``current`` (torque constant [N m/A],
+    topic): the measurement is the motor current on that topic times the constant.
     """
+    measured = None
+    if current is not None:
+        measured = read_current_topic(path, current[1], current[0])
     try:
         src = BagInput(path, topics)
     except (FileNotFoundError, ValueError) as exc:
         raise InputProblem(str(exc)) from exc
     with src:
-        return _load_bag_input(src, path, config_path, replay_settings, topics, progress,
-                               baseline)
+        rec = _load_bag_input(src, path, config_path, replay_settings, topics, progress,
+                              baseline, measured)
+    if current is not None:
+        rec.info["measured_torque_source"] = (f"topic {current[1]} (motor current) x "
+                                              f"{current[0]:g} N m/A ({CURRENT_FLAG})")
+    else:
+        rec.info["measured_torque_source"] = f"topic {topics.measured_torque}"
+    return rec
 
 
-def _load_bag_input(src, path, config_path, replay_settings, topics, progress, baseline):
+# Message types a motor-current topic may have: the value [A] is ``data``; they carry no
+# header, so the sample's time is the bag's log time.
+CURRENT_TYPES = ("std_msgs/msg/Float64", "std_msgs/msg/Float32")
+
+
+def read_current_topic(path, topic, torque_constant_nm_per_a):
+    """
+    Return (stamps [s], torque [N m]) of a motor-current topic of a bag, scaled by K.
+
+    The topic's type must be one of ``CURRENT_TYPES`` (the current in ``data``, A); the log
+    time is its stamp.  A missing or empty topic is refused, naming it and the flag.
+    """
+    from rosbags.highlevel import AnyReader
+    name = "/" + topic.lstrip("/")
+    try:
+        reader = AnyReader([Path(path)])
+        reader.open()
+    except Exception as exc:         # rosbags raises its own types for a damaged bag
+        raise InputProblem(f"{path}: cannot read the bag ({exc})") from exc
+    try:
+        conns = [c for c in reader.connections if c.topic == name]
+        if not conns or not sum(c.msgcount for c in conns):
+            have = ", ".join(sorted({c.topic for c in reader.connections})) or "none"
+            raise InputProblem(f"{path}: no motor current: topic {name} is missing or empty "
+                               f"(topics in the bag: {have}); {CURRENT_FLAG} reads the "
+                               "current from --current-topic")
+        bad = [c.msgtype for c in conns if c.msgtype not in CURRENT_TYPES]
+        if bad:
+            raise InputProblem(f"{path}: topic {name} has type {bad[0]}; a motor current "
+                               f"topic must be {' or '.join(CURRENT_TYPES)} (the current in "
+                               "data, A)")
+        stamps, values = array("d"), array("d")
+        for conn, t_ns, raw in reader.messages(connections=conns):
+            v = float(reader.deserialize(raw, conn.msgtype).data)
+            if math.isfinite(v):
+                stamps.append(t_ns * 1e-9)
+                values.append(torque_constant_nm_per_a * v)
+    finally:
+        reader.close()
+    return stamps, values
+
+
+def _load_bag_input(src, path, config_path, replay_settings, topics, progress, baseline,
+                    current=None):
     counts = src.counts                  # messages actually read, filled as the bag streams
     events = (ev for _, _, _, ev in src.messages(all_topics=False))
 
@@ -231,10 +297,14 @@ def _load_bag_input(src, path, config_path, replay_settings, topics, progress, b
                             "(--measured-topic)")
     measured = [c.msgcount for c in src.connections
                 if c.topic.lstrip("/") == topics.measured_torque.lstrip("/")]
-    if not any(measured):
+    if current is None and not any(measured):
         raise no_measurement()        # before running the model over the whole bag
-    meas_t, meas_v = array("d"), array("d")
-    inputs = _split_measured(events, meas_t, meas_v)
+    if current is None:
+        meas_t, meas_v = array("d"), array("d")
+        inputs = _split_measured(events, meas_t, meas_v)
+    else:                             # the motor current x K, not the torque topic
+        inputs = _split_measured(events, array("d"), array("d"))
+        meas_t, meas_v = current
     if baseline == "zero":
         packed, rejected = zero_baseline_events(inputs, replay_settings)
         info = {"input": str(path), "format": "rosbag2", "baseline": "zero",
@@ -259,6 +329,37 @@ def _load_bag_input(src, path, config_path, replay_settings, topics, progress, b
     return _from_packed(packed, meas, info, base)
 
 
+def _csv_header(path):
+    """Return the header names of a CSV (empty when unreadable: the reader says why)."""
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            return next(csv.reader(fh), [])
+    except (OSError, UnicodeDecodeError):
+        return []
+
+
+def measurement_columns(path, torque_constant_nm_per_a):
+    """
+    Return the required columns of a CSV: its torque, or its motor current (issue 19).
+
+    ``motor_current_a`` needs ``--torque-constant-nm-per-a``; a constant without the column,
+    or a current without the constant, is refused, naming the flag or the column.
+    """
+    header = _csv_header(path)
+    base = CSV_REQUIRED[:-1]
+    if torque_constant_nm_per_a is None:
+        if CSV_CURRENT in header and "torque_meas_nm" not in header:
+            raise InputProblem(f"{path}: has {CSV_CURRENT} but no torque_meas_nm: a motor "
+                               f"current needs the motor's torque constant, "
+                               f"{CURRENT_FLAG} K [N m/A] (the measured torque is K x "
+                               "current)")
+        return CSV_REQUIRED
+    if header and CSV_CURRENT not in header:
+        raise InputProblem(f"{path}: {CURRENT_FLAG} was given but the CSV has no "
+                           f"{CSV_CURRENT} column (has: {', '.join(header)})")
+    return base + (CSV_CURRENT,)
+
+
 def _read_csv_columns(path, required=CSV_REQUIRED):
     try:
         # utf-8-sig: a spreadsheet's byte-order mark would otherwise glue itself to "t_s"
@@ -276,7 +377,8 @@ def _read_csv_columns(path, required=CSV_REQUIRED):
             raise InputProblem(f"{path}: CSV lacks column(s) {', '.join(missing)} (needs "
                                f"{', '.join(required)}; optional {CSV_PREDICTION}, "
                                f"{CSV_ACCELERATION}); has: {', '.join(header) or 'no header'}")
-        wanted = list(required) + [c for c in (CSV_PREDICTION, CSV_ACCELERATION)
+        wanted = list(required) + [c for c in (CSV_PREDICTION, CSV_ACCELERATION,
+                                               CSV_EMPIRICAL)
                                    if c in header and c not in required]
         cols = {c: [] for c in wanted}
         try:
@@ -314,6 +416,58 @@ def check_time_order(path, t_s):
     return int(back.size) + 1
 
 
+def check_time_advances(path, t_s):
+    """
+    Refuse a file whose ``t_s`` never advances (issue 23, finding 13).
+
+    Every row at one time has no sample period: no acceleration, no time regimes and no
+    thermal time scale can be derived (it crashed in the thermal grid before).
+    """
+    if t_s.size > 1 and not np.ptp(t_s) > 0.0:
+        raise InputProblem(f"{path}: column t_s never advances (all {t_s.size} rows at "
+                           f"t_s = {t_s[0]:.9g}); the workflow needs the sample times in "
+                           "seconds (a logger that leaves the stamp at 0 must be given one)")
+
+
+def check_reused_terms(path, cols, config_path):
+    """
+    Refuse a reused prediction that carries terms the ``--config`` does not (issue 23, 8).
+
+    Replay's ``prediction.csv`` of an augmented model has ``torque_empirical_nm``: its
+    ``torque_pred_nm`` includes those terms.  ``augmented.yaml`` is written on ``--config``,
+    so a config without the same terms lost them (a later replay was 11x worse than
+    reported).  The config's terms are evaluated on the rows as the runner does (causal
+    filter, reset where the stamps go backwards) and must reproduce the column.  Return the
+    config's term names (in the prediction already).
+    """
+    terms = load_model_file(config_path)[1]
+    emp = cols.get(CSV_EMPIRICAL)
+    if emp is None or not np.any(emp != 0.0):
+        return terms.names
+    if not len(terms):
+        raise InputProblem(
+            f"{path}: its {CSV_PREDICTION} includes fitted empirical terms (column "
+            f"{CSV_EMPIRICAL} is not zero), but --config {config_path} has none: pass the "
+            "--config that replay used (e.g. DIR/augmented.yaml), or --recompute-prediction")
+    live = terms.live()
+    t = cols["t_s"]
+    t_run = run_times(t)
+    mine = np.empty(t.size)
+    for i in range(t.size):
+        if i and t[i] < t[i - 1]:
+            live.reset()
+        mine[i] = live.torque_nm(t[i], t_run[i], cols["nut_angle_rad"][i],
+                                 cols["nut_velocity_rad_s"][i], cols["axial_load_n"][i])
+    worst = float(np.max(np.abs(mine - emp)))
+    if worst > EMPIRICAL_MATCH_ABS_NM + EMPIRICAL_MATCH_REL * float(np.sqrt(np.mean(emp ** 2))):
+        raise InputProblem(
+            f"{path}: its {CSV_EMPIRICAL} is not what the terms of --config {config_path} "
+            f"give on its rows (up to {worst:.3g} N m apart): the prediction was made with "
+            "another model file; pass the --config that replay used, or "
+            "--recompute-prediction")
+    return terms.names
+
+
 def csv_events(cols, nut_joint):
     """Yield the events a CSV stands for: each row's axial load, then its nut state."""
     for t, a, w, f in zip(cols["t_s"], cols["nut_angle_rad"], cols["nut_velocity_rad_s"],
@@ -323,19 +477,26 @@ def csv_events(cols, nut_joint):
 
 
 def load_csv(path, config_path, replay_settings=NodeParameters(), recompute=False,
-             progress=False, baseline="model"):
+             progress=False, baseline="model", torque_constant_nm_per_a=None):
     """Read a CSV recording; reuse its ``torque_pred_nm`` unless ``recompute`` (see module)."""
-    cols = _read_csv_columns(path)
+    cols = _read_csv_columns(path, measurement_columns(path, torque_constant_nm_per_a))
     if cols["t_s"].size == 0:
         raise InputProblem(f"{path}: CSV has no data rows")
+    measured_from = "csv column torque_meas_nm"
+    if torque_constant_nm_per_a is not None:
+        cols["torque_meas_nm"] = torque_constant_nm_per_a * cols[CSV_CURRENT]
+        measured_from = (f"csv column {CSV_CURRENT} x {torque_constant_nm_per_a:g} N m/A "
+                         f"({CURRENT_FLAG})")
     for c in ("t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n", CSV_ACCELERATION):
         if c in cols and not np.all(np.isfinite(cols[c])):
             line = int(np.flatnonzero(~np.isfinite(cols[c]))[0]) + 2
             raise InputProblem(f"{path}: column {c} has non-finite values (first at line "
                                f"{line})")
     runs = check_time_order(path, cols["t_s"])
+    check_time_advances(path, cols["t_s"])
     accel = cols.get(CSV_ACCELERATION)
     info = {"input": str(path), "format": "csv", "runs": runs,
+            "measured_torque_source": measured_from,
             "acceleration_source": f"csv column {CSV_ACCELERATION}" if accel is not None
             else "derived (zero-phase filter)"}
     t_run = run_times(cols["t_s"])
@@ -346,8 +507,9 @@ def load_csv(path, config_path, replay_settings=NodeParameters(), recompute=Fals
                         baseline="zero", base_terms=[])
         else:
             pred = cols[CSV_PREDICTION]
+            base = check_reused_terms(path, cols, config_path)
             info.update(prediction_source=f"csv column {CSV_PREDICTION} (reused)",
-                        base_terms=[])
+                        base_terms=list(base))
             if np.all(pred == 0.0):
                 info["baseline"] = "zero"
         return Recording(cols["t_s"], t_run, cols["nut_angle_rad"],
@@ -369,16 +531,31 @@ def load_csv(path, config_path, replay_settings=NodeParameters(), recompute=Fals
 
 
 def load_recording(path, config_path=None, replay_settings=NodeParameters(), topics=Topics(),
-                   recompute=False, progress=False, baseline="model"):
-    """Load a rosbag2 directory or a ``.csv`` file (see module docstring)."""
+                   recompute=False, progress=False, baseline="model",
+                   torque_constant_nm_per_a=None, current_topic=CURRENT_TOPIC):
+    """
+    Load a rosbag2 directory or a ``.csv`` file (see module docstring).
+
+    ``torque_constant_nm_per_a``: the measured torque is this times the motor current (the
+    CSV column ``motor_current_a``, or the bag topic ``current_topic``).
+    """
     path = Path(path)
     config_path = config_path or bundled_config("ball_screw.yaml")
     if not Path(config_path).is_file():
         raise ConfigError(f"{config_path}: no such config file")
+    if torque_constant_nm_per_a is not None and not (math.isfinite(torque_constant_nm_per_a)
+                                                     and torque_constant_nm_per_a > 0):
+        raise InputProblem(f"{CURRENT_FLAG}: must be a finite torque constant > 0 N m/A, got "
+                           f"{torque_constant_nm_per_a!r}")
     if path.is_dir():
-        return load_bag(path, config_path, replay_settings, topics, progress, baseline)
+        current = None
+        if torque_constant_nm_per_a is not None:
+            current = (torque_constant_nm_per_a, current_topic)
+        return load_bag(path, config_path, replay_settings, topics, progress, baseline,
+                        current)
     if path.is_file() and path.suffix.lower() == ".csv":
-        return load_csv(path, config_path, replay_settings, recompute, progress, baseline)
+        return load_csv(path, config_path, replay_settings, recompute, progress, baseline,
+                        torque_constant_nm_per_a)
     if not path.exists():
         raise InputProblem(f"{path}: no such bag or CSV file")
     raise InputProblem(f"{path}: neither a rosbag2 directory nor a .csv file")

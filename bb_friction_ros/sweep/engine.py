@@ -139,10 +139,62 @@ def _part_path(parts_dir, batch):
 
 
 def write_atomic(table, path):
-    """Write a Parquet file so that it is either whole or absent (rename is atomic)."""
+    """
+    Write a Parquet file so that it is either whole or absent, also after a power cut.
+
+    The data are fsynced before the rename (otherwise the rename can reach the disk before
+    the data, leaving a whole-looking name on a torn file; issue 23 #12), and the directory
+    after it (so that the rename itself survives).
+    """
     tmp = path.with_name(path.name + ".tmp")
-    pq.write_table(table, tmp)
+    with open(tmp, "wb") as fh:
+        pq.write_table(table, fh)
+        fh.flush()
+        os.fsync(fh.fileno())
     os.replace(tmp, path)
+    fsync_dir(path.parent)
+
+
+def fsync_dir(directory):
+    """Make a rename in ``directory`` durable (POSIX: fsync the directory itself)."""
+    fd = os.open(directory, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _part_problem(spec, schema, path):
+    """
+    Return (batch, rows, None) for a whole part file of this spec, else (None, None, why).
+
+    ``why`` says what is wrong with this very file: each check sets its own reason, so a
+    torn file is never described with another file's reason (issue 23 #12).
+    """
+    try:
+        batch = int(path.stem[len(PART_PREFIX):])
+    except ValueError:
+        return None, None, "not a part file name (batch-NNNNNN.parquet)"
+    if not 0 <= batch < spec.n_batches:
+        return None, None, f"batch {batch} is outside this sweep's 0..{spec.n_batches - 1}"
+    try:
+        meta = pq.read_metadata(path)
+        file_schema = meta.schema.to_arrow_schema()
+    except (ValueError, OSError, pa.ArrowException) as exc:
+        return None, None, f"unreadable part file ({type(exc).__name__}: {exc})"
+    start, stop = spec.batch_bounds(batch)
+    if meta.num_rows != stop - start:
+        return None, None, f"part file holds {meta.num_rows} rows, not its batch's {stop - start}"
+    if not file_schema.equals(schema, check_metadata=False):
+        return None, None, "part file's columns are not this sweep's (a foreign part?)"
+    try:
+        ids = _sample_range(meta, path)
+    except (ValueError, OSError, pa.ArrowException) as exc:
+        return None, None, f"unreadable part file ({type(exc).__name__}: {exc})"
+    if ids != (start, stop - 1):
+        return None, None, (f"part file holds samples {ids[0]}..{ids[1]}, not its batch's "
+                            f"{start}..{stop - 1} (a copied or renamed part?)")
+    return batch, meta.num_rows, None
 
 
 def completed_batches(spec, parts_dir, log=None):
@@ -150,29 +202,17 @@ def completed_batches(spec, parts_dir, log=None):
     Return {batch: rows} of the part files that are whole and match the spec.
 
     A part that cannot be read or has the wrong rows or schema (a crash while writing it, a
-    full disk) is deleted so that its batch runs again; leftover ``.tmp`` files too.
+    full disk) is deleted so that its batch runs again, with its own reason in the log;
+    leftover ``.tmp`` files too.
     """
     schema = table_schema(spec)
     done = {}
     for tmp in parts_dir.glob("*.tmp"):
         tmp.unlink()
     for path in sorted(parts_dir.glob(f"{PART_PREFIX}*.parquet")):
-        try:
-            batch = int(path.stem[len(PART_PREFIX):])
-            meta = pq.read_metadata(path)
-            start, stop = spec.batch_bounds(batch)
-            ok = (0 <= batch < spec.n_batches and meta.num_rows == stop - start
-                  and meta.schema.to_arrow_schema().equals(schema, check_metadata=False))
-            why = "unreadable or foreign part file"
-            if ok:
-                ids = _sample_range(meta, path)
-                ok = ids == (start, stop - 1)
-                why = (f"part file holds samples {ids[0]}..{ids[1]}, not its batch's "
-                       f"{start}..{stop - 1} (a copied or renamed part?)")
-        except (ValueError, OSError, pa.ArrowException):
-            ok = False
-        if ok:
-            done[batch] = meta.num_rows
+        batch, rows, why = _part_problem(spec, schema, path)
+        if why is None:
+            done[batch] = rows
         else:
             if log:
                 log(f"sweep: discarding {path.name}: {why}; its batch is computed again")
@@ -220,8 +260,12 @@ def check_manifest(spec, out_dir):
                 "batch_size": spec.batch_size, "source": spec.source,
                 "package_version": __version__, "spec": spec.canonical()}
     tmp = path.with_name(MANIFEST + ".tmp")
-    tmp.write_text(json.dumps(manifest, indent=2))
+    with open(tmp, "w") as fh:          # fsynced as the parts are (write_atomic)
+        fh.write(json.dumps(manifest, indent=2))
+        fh.flush()
+        os.fsync(fh.fileno())
     os.replace(tmp, path)
+    fsync_dir(out_dir)
 
 
 def check_results_memory(spec, memory_limit_mib=None):

@@ -3,27 +3,25 @@ The unstated amplitude of theta(phi) (paper Fig. 19): the bundled sweep and its 
 
 The paper's whole-screw study (Sec. 3.4) gives theta(phi) only as a picture without scale.
 ``config/sweeps/theta_amplitude_fig21.yaml`` runs the whole screw over the amplitude (2-5 deg)
-with rigid and elastic load distribution on the ordinary sweep engine and records the
-features of Figs. 20-21 that the paper states.  The amplitude is calibrated against ONE of
-them, the peak B2B share (paper 49.6 %): a straight line fitted to the sweep's points around
-the crossing gives the value and its uncertainty.  The other features are validation, never
+with rigid and elastic load distribution and records the features of Figs. 20-21 that the
+paper states.  ``bb-friction sweep`` runs that spec on the Dask engine; ``bb-friction
+reproduce`` runs the same samples through the same ``models.evaluate`` in this process
+(``run_theta_sweep``), so that reproducing the paper needs neither Dask nor Arrow.
+
+The amplitude is calibrated against ONE of the features, the peak B2B share (paper 49.6 %):
+a straight line fitted to the sweep's points around the crossing gives the value and its
+uncertainty.  The other features are validation, never
 fitted.  The result is the config value ``errors.theta_amplitude_deg``
 (docs/assumptions_ball_screw.md).
 """
 
-import dataclasses
 import math
-from pathlib import Path
 
 import numpy as np
-import pyarrow.parquet as pq
 
 from bb_friction_ros import paper
-from bb_friction_ros.ball_screw.screw_model import ScrewModel
-from bb_friction_ros.ball_screw.simulation import fig21_features, run_whole_screw
-from bb_friction_ros.ball_screw.whole_screw import WholeScrew
 from bb_friction_ros.config import bundled_config
-from bb_friction_ros.sweep.engine import run_sweep
+from bb_friction_ros.sweep.models import MODELS, OK, evaluate
 from bb_friction_ros.sweep.spec import load_spec
 
 SPEC_NAME = "sweeps/theta_amplitude_fig21.yaml"
@@ -39,25 +37,34 @@ PAPER_GROUPS = paper.B2B_GROUPS.value
 FIT_WINDOW_RAD = math.radians(0.5)
 
 
-def run_theta_sweep(out_dir, coarse=False, workers=None, progress=False):
+def run_theta_sweep(coarse=False):
     """
-    Run the bundled sweep into ``out_dir``; return its rows as {column: numpy array}.
+    Run the bundled sweep in this process; return its rows as {column: numpy array}.
 
-    ``coarse``: 0.5 deg instead of 0.25 deg steps (7 instead of 13 amplitudes).
+    ``coarse``: 0.5 deg instead of 0.25 deg steps (7 instead of 13 amplitudes).  The
+    samples and each sample's evaluation are the sweep engine's (``spec.sample_inputs``,
+    ``models.evaluate``); only the Dask scheduling and the Parquet file are left out: 26
+    runs of 200 steps take seconds, less than starting a Dask cluster, and reproducing the
+    paper should not need the design-study stack.  Raises RuntimeError naming the first
+    sample that did not finish OK.
     """
-    spec_path = bundled_config(SPEC_NAME)
     overrides = {"grid": {"errors.theta_amplitude_deg": {"start": 2.0, "stop": 5.0, "num": 7},
                           ELASTIC: [0, 1]}} if coarse else None
-    spec = load_spec(spec_path, overrides) if overrides else load_spec(spec_path)
-    rep = run_sweep(spec, Path(out_dir), workers=workers, progress=progress, plots=False,
-                    log=lambda msg: None)
-    if not rep.complete:
-        raise RuntimeError(f"theta-amplitude sweep incomplete in {out_dir}: "
-                           f"{rep.task_errors}")
-    table = pq.read_table(Path(out_dir) / "results.parquet")
-    return {name: np.asarray(table.column(name).to_pylist(), dtype=float)
-            if name not in ("status", "reason") else table.column(name).to_pylist()
-            for name in table.column_names}
+    spec = load_spec(bundled_config(SPEC_NAME), overrides)
+    model = MODELS[spec.model]
+    cols = spec.sample_inputs(0, spec.n_samples)
+    outs = {name: [] for name in spec.outputs}
+    for j in range(spec.n_samples):
+        params = {name: cols[name][j].item() for name in spec.input_names}
+        out, status, reason = evaluate(model, spec.base, params, spec.option_map,
+                                       spec.config_names)
+        if status != OK:
+            raise RuntimeError(f"theta-amplitude sweep: sample {j} ({params}) {status}: "
+                               f"{reason}")
+        for name in spec.outputs:
+            outs[name].append(out[name])
+    cols.update(outs)
+    return {name: np.asarray(values, dtype=float) for name, values in cols.items()}
 
 
 def _feature(rows, elastic, name):
@@ -92,19 +99,6 @@ def calibrate_amplitude(rows, elastic, target=PAPER_PEAK_SHARE, window_rad=FIT_W
     resid = share[near] - (slope * amp[near] + icpt)
     scatter = float(np.sqrt(np.mean(resid ** 2))) if near.sum() > 2 else 0.0
     return float((target - icpt) / slope), scatter / abs(float(slope))
-
-
-def fig21_run(config, amplitude_rad, model=None):
-    """Fig. 21 features of the whole screw at one amplitude (``simulation.fig21_features``)."""
-    cfg = dataclasses.replace(config, errors=dataclasses.replace(
-        config.errors, theta_amplitude_rad=float(amplitude_rad)))
-    results, _ = run_whole_screw(cfg, screw=WholeScrew(cfg, model or ScrewModel(cfg)))
-    if not all(r.converged for r in results):
-        raise RuntimeError(f"whole screw did not converge at theta amplitude "
-                           f"{math.degrees(amplitude_rad):.3f} deg")
-    return fig21_features([r.nut_angle_rad for r in results],
-                          [r.torque_b2g_nm for r in results],
-                          [r.torque_b2b_nm for r in results], [r.n_groups for r in results])
 
 
 def plot_theta_sweep(rows, path, calibrated_deg=None, config_deg=None):

@@ -212,6 +212,79 @@ def test_resume_over_a_copied_part_file_recomputes_its_batch(tmp_path, linear_mc
     assert results(tmp_path).column('sample').to_pylist() == list(range(20))
 
 
+def _tear(path):
+    """Cut a real part file in half, as a crash or a full disk mid-write leaves it."""
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+
+
+@pytest.mark.parametrize('torn', [0, 2])
+def test_resume_over_a_torn_part_file_recomputes_it(tmp_path, linear_mc, client, torn):
+    """Issue 23 #12: a torn first part crashed the resume (UnboundLocalError 'why'); a torn
+    later part was described with the previous file's reason.  Now each is "unreadable part
+    file", discarded and computed again, and the results equal an uninterrupted run's."""
+    spec = linear_mc(samples=20)
+    whole = run_sweep(spec, tmp_path / 'whole', client=client, **QUIET)
+    assert whole.complete
+    out = tmp_path / 'out'
+    first = run_sweep(spec, out, client=client, max_samples=15, max_in_flight=1, **QUIET)
+    assert not first.complete and len(parts(out)) == 3
+    name = f'batch-{torn:06d}.parquet'
+    _tear(out / 'parts' / name)
+    said = []
+    rep = run_sweep(spec, out, client=client, **{**QUIET, 'log': said.append})
+    assert rep.complete and torn in rep.batches_submitted and rep.n_resumed == 10
+    discarded = [m for m in said if 'discarding' in m]
+    assert len(discarded) == 1 and name in discarded[0], said
+    assert 'unreadable part file' in discarded[0] and 'samples' not in discarded[0]
+    assert results(out).equals(results(tmp_path / 'whole'))
+
+
+def test_part_file_reasons_are_each_files_own(tmp_path, linear_mc, client):
+    """A copied part and a torn part in one resume: each gets its own reason."""
+    spec = linear_mc(samples=20)
+    run_sweep(spec, tmp_path, client=client, max_samples=10, max_in_flight=1, **QUIET)
+    p = tmp_path / 'parts'
+    (p / 'batch-000002.parquet').write_bytes((p / 'batch-000000.parquet').read_bytes())
+    (p / 'batch-000003.parquet').write_bytes((p / 'batch-000000.parquet').read_bytes())
+    _tear(p / 'batch-000003.parquet')
+    said = []
+    assert engine.completed_batches(spec, p, log=said.append) == {0: 5, 1: 5}
+    assert len(said) == 2
+    assert 'batch-000002' in said[0] and 'samples 0..4' in said[0]
+    assert 'batch-000003' in said[1] and 'unreadable part file' in said[1]
+    assert 'samples' not in said[1]
+
+
+def test_write_atomic_fsyncs_the_data_before_the_rename(tmp_path, linear_mc, monkeypatch):
+    """#12: the data reach the disk before the rename, and the rename after it.
+
+    fsync has no other observable effect short of cutting the power, so the order of the
+    real calls is recorded (they still run)."""
+    import os
+    spec = linear_mc(samples=5)
+    table = engine.batch_table(spec, engine.run_batch(spec, 0))
+    calls = []
+    real_fsync, real_replace = os.fsync, os.replace
+
+    def fsync(fd):
+        calls.append(('fsync', os.path.realpath(f'/proc/self/fd/{fd}')))
+        return real_fsync(fd)
+
+    def replace(a, b):
+        calls.append(('replace', str(a), str(b)))
+        return real_replace(a, b)
+
+    monkeypatch.setattr(engine.os, 'fsync', fsync)
+    monkeypatch.setattr(engine.os, 'replace', replace)
+    path = tmp_path / 'batch-000000.parquet'
+    engine.write_atomic(table, path)
+    tmp = str(path) + '.tmp'
+    assert calls == [('fsync', tmp), ('replace', tmp, str(path)),
+                     ('fsync', str(tmp_path))]
+    assert pq.read_table(path).num_rows == 5
+
+
 def test_compact_refuses_duplicate_sample_ids(tmp_path, linear_mc, client):
     """#14: the last guard: results.parquet never counts a sample twice."""
     import pyarrow as pa

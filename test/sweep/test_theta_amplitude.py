@@ -1,6 +1,8 @@
 """The theta-amplitude sweep of Fig. 19: spec, Fig. 21 outputs, calibration to one feature."""
 
 import math
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -52,3 +54,28 @@ def test_whole_screw_sample_records_the_fig21_features():
     params["elastic_load_distribution"] = 2
     _, status, reason = evaluate(model, base, params, {"settle_steps": 0}, names)
     assert status == FAILED and "elastic_load_distribution" in reason
+
+
+def test_reproduce_imports_no_sweep_engine():
+    """Reproducing the paper needs neither Dask nor Arrow (issue 22), in a clean process."""
+    code = ("import sys, bb_friction_ros.reproduce; "
+            "print(sorted(m for m in sys.modules if m.split('.')[0] in "
+            "('dask', 'distributed', 'pyarrow') or m == 'bb_friction_ros.sweep.engine'))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert out.strip() == "[]"
+
+
+def test_in_process_sweep_is_the_engine_s_samples():
+    """run_theta_sweep gives the rows the engine's own batch function gives for the same spec."""
+    from bb_friction_ros.sweep.engine import run_batch
+    rows = ta.run_theta_sweep(coarse=True)
+    spec = load_spec(bundled_config(ta.SPEC_NAME),
+                     {"grid": {"errors.theta_amplitude_deg": {"start": 2.0, "stop": 5.0,
+                                                              "num": 7},
+                               ta.ELASTIC: [0, 1]}})
+    batches = [run_batch(spec, b) for b in range(spec.n_batches)]
+    assert len(rows["sample"]) == spec.n_samples == 14
+    for name in ("sample", ta.AMPLITUDE, ta.ELASTIC, *spec.outputs):
+        engine = np.concatenate([np.asarray(b[name], dtype=float) for b in batches])
+        np.testing.assert_array_equal(rows[name], engine, err_msg=name)
