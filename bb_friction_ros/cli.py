@@ -164,7 +164,9 @@ def _add_replay_parser(sub):
     p.add_argument("--params-file", help="the node's ROS params file: nut_joint, "
                    "model_rate_hz, max_axial_load_n (and config_file) are taken from it")
     p.add_argument("--nut-joint", help="joint name in nut_state (overrides the params file)")
-    p.add_argument("--model-rate-hz", type=float, help="model steps per second of input time")
+    p.add_argument("--model-rate-hz", type=float, help="least model steps per second of input "
+                   "time (the floor when the nut creeps or stands)")
+    p.add_argument("--model-step-deg", type=float, help="nut rotation between model steps")
     Topics.add_arguments(p)
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--no-bag", action="store_true", help="write no output bag (DIR/bag/), "
@@ -187,6 +189,8 @@ def _replay_settings(args):
         changes["nut_joint"] = args.nut_joint
     if args.model_rate_hz is not None:
         changes["model_rate_hz"] = args.model_rate_hz
+    if getattr(args, "model_step_deg", None) is not None:
+        changes["model_step_deg"] = args.model_step_deg
     return node_parameters(changes, *([settings] if settings else []))
 
 
@@ -271,9 +275,10 @@ def _run_demo(args):
     import os
     from pathlib import Path
     from bb_friction_ros.demo import run_demo
+    from bb_friction_ros.interface import local_domain_id
     # DDS stays on this machine, on a domain of this run's own (set before rclpy.init).
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    os.environ.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 101))
+    os.environ.setdefault("ROS_DOMAIN_ID", str(local_domain_id()))
     return run_demo(Path(args.out), _demo_events(), speed=args.speed)
 
 

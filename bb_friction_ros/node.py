@@ -31,6 +31,7 @@ forward-command convention; the runner's safe value when a step did not converge
 
 import collections
 import dataclasses
+import math
 import sys
 import threading
 import time
@@ -48,6 +49,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
+from bb_friction_ros import interface
 from bb_friction_ros.config import bundled_config, ConfigError
 from bb_friction_ros.node_parameters import (MODEL_PARAMETERS, NODE_NAME, node_parameters,
                                              NodeParameters, ros_type, RUNTIME,
@@ -56,9 +58,6 @@ from bb_friction_ros.runner import (build_runner, InputAssembler, InputError,
                                     look_ahead_profile)
 
 GIL_SWITCH_INTERVAL_S = 2.5e-4
-# Topics this node publishes; another publisher on any of them is reported (two nodes?).
-OUTPUT_TOPICS = ("friction/prediction", "friction/feedforward",
-                 "friction/feedforward_profile", "friction/contact_groups")
 
 
 def _descriptor(f):
@@ -106,7 +105,8 @@ class FrictionNode(Node):
         self._queue = collections.deque(maxlen=p.queue_size)
         self._busy = False          # the model thread owns the runner until it clears this
         self._profile_seed = None
-        self._runner = build_runner(_model_file(p), p.model_rate_hz)
+        self._runner = build_runner(_model_file(p), p.model_rate_hz, p.model_step_deg,
+                                    p.max_model_step_deg)
         self._assembler = InputAssembler(p.nut_joint, p.max_axial_load_n)
         self._pending = None    # (parameters, runner, names) validated, applied after the set
         self._max_age_ns = int(p.max_answer_age_s * 1e9)
@@ -114,6 +114,7 @@ class FrictionNode(Node):
         self._dropped = 0
         self._shed = 0
         self._shed_at_diag = 0
+        self._stalls_at_diag = 0
         self._received = collections.Counter()
         self._published = 0
         self._inline = 0
@@ -139,16 +140,17 @@ class FrictionNode(Node):
         self._out_input, self._out_model = (
             (FrictionPrediction(check_fields=False),
              Float64MultiArray(data=[0.0], check_fields=False)) for _ in range(2))
-        self._pub_pred = self.create_publisher(FrictionPrediction, "friction/prediction", 10)
-        self._pub_groups = self.create_publisher(ContactGroupStatus, "friction/contact_groups",
-                                                 10)
-        self._pub_ff = self.create_publisher(Float64MultiArray, "friction/feedforward", 10)
-        self._pub_profile = self.create_publisher(FeedforwardProfile,
-                                                  "friction/feedforward_profile", 10)
-        self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        depth = interface.OUTPUT_QOS_DEPTH
+        self._pub_pred = self.create_publisher(FrictionPrediction, interface.PREDICTION, depth)
+        self._pub_groups = self.create_publisher(ContactGroupStatus, interface.CONTACT_GROUPS,
+                                                 depth)
+        self._pub_ff = self.create_publisher(Float64MultiArray, interface.FEEDFORWARD, depth)
+        self._pub_profile = self.create_publisher(FeedforwardProfile, interface.PROFILE, depth)
+        self._pub_diag = self.create_publisher(DiagnosticArray, interface.DIAGNOSTICS, depth)
         self._inputs = (
-            self.create_subscription(WrenchStamped, "axial_load", self._on_axial_load, qos),
-            self.create_subscription(JointState, "nut_state", self._on_nut_state, qos))
+            self.create_subscription(WrenchStamped, interface.AXIAL_LOAD, self._on_axial_load,
+                                     qos),
+            self.create_subscription(JointState, interface.NUT_STATE, self._on_nut_state, qos))
         # The inputs are taken by our own thread, not by the executor: rclpy's executor
         # spends ~0.3-0.6 ms of Python per message (rebuilding its wait set, tasks,
         # callback groups; measured with py-spy at 1 kHz, bench/bench_node.py), more than
@@ -271,24 +273,16 @@ class FrictionNode(Node):
         import and validate every field) cost ~60 us per input (profiled).
         """
         msg, ff = out
-        msg.header.stamp = stamp
-        msg.nut_angle_rad = pred.nut_angle_rad
-        msg.nut_velocity_rad_s = pred.nut_velocity_rad_s
-        msg.axial_load_n = pred.axial_load_n
-        msg.torque_total_nm = pred.torque_total_nm
-        msg.torque_b2g_nm = pred.torque_b2g_nm
-        msg.torque_b2b_nm = pred.torque_b2b_nm
-        msg.torque_empirical_nm = pred.torque_empirical_nm
-        msg.converged = pred.converged
-        msg.model_age_s = pred.model_age_s
-        msg.n_groups = len(pred.groups)
         ff.data[0] = pred.feedforward_nm
         age_ns = time.time_ns() - recv_ns
         if age_ns > self._max_age_ns:
             with self._lock:
                 self._shed += 1
             return False
-        msg.model_latency_s = 1e-9 * age_ns
+        msg.header.stamp = stamp
+        for name, value in zip(interface.PREDICTION_FIELDS,
+                               interface.prediction_values(pred, 1e-9 * age_ns)):
+            setattr(msg, name, value)
         self._pub_pred.publish(msg)
         self._pub_ff.publish(ff)
         with self._lock:
@@ -408,6 +402,11 @@ class FrictionNode(Node):
                 "last_step_s": stats.last_step_wall_s,
                 "nonconverged_steps": stats.nonconverged_steps,
                 "feedforward_held": self._ff_held,
+                "feedforward_zeroed": stats.feedforward_zeroed,
+                "model_step_deg": math.degrees(self._runner.model_step_rad),
+                "coarse_steps": stats.coarse_steps,
+                "stamp_stalls": stats.stamp_stalls,
+                "term_restarts": stats.term_restarts,
                 "queue_length": len(self._queue),
                 "skipped_inputs": self._dropped + stats.skipped_steps,
                 "skipped_steps": stats.skipped_steps,
@@ -471,6 +470,14 @@ class FrictionNode(Node):
             notes.append(f"shedding load: {values['shed_since_last_report']} answers older "
                          f"than max_answer_age_s = {values['max_answer_age_s']:.6g} s not "
                          "published")
+        if values["stamp_stalls"] > self._stalls_at_diag:
+            notes.append(f"input stamps do not advance ({values['stamp_stalls']} samples with "
+                         "the previous sample's stamp): the model steps on nut angle, "
+                         "direction and load only, and model_age_s is 0 for those")
+        self._stalls_at_diag = values["stamp_stalls"]
+        if values["coarse_steps"]:
+            notes.append(f"model could not keep up: {values['coarse_steps']} coarser steps, "
+                         f"now {values['model_step_deg']:.3g} deg per step")
         if values["skipped_steps"]:
             notes.append(f"model fell behind: {values['skipped_steps']} steps skipped "
                          "(answers differ from replay from then on)")
@@ -509,7 +516,8 @@ class FrictionNode(Node):
             new = node_parameters(updates, node_parameters(current))
             runner = None
             if MODEL_PARAMETERS & updates.keys():
-                runner = build_runner(_model_file(new), new.model_rate_hz)
+                runner = build_runner(_model_file(new), new.model_rate_hz,
+                                      new.model_step_deg, new.max_model_step_deg)
         except ConfigError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
         except Exception as exc:     # a model that cannot be built: refused, node lives
@@ -527,8 +535,10 @@ class FrictionNode(Node):
         with self._lock:
             if runner is not None:
                 # counters go on across the swap: diagnostics stay cumulative and the model
-                # rate window keeps its base (a new runner's zero gave one negative rate)
-                runner.stats = self._runner.stats
+                # rate window keeps its base (a new runner's zero gave one negative rate);
+                # the same empirical terms keep their clock and filter
+                if not runner.continue_from(self._runner) and runner.terms is not None:
+                    self._reset_note = "empirical terms restarted (model rebuilt)"
                 self._runner = runner
             self._assembler.nut_joint = new.nut_joint
             self._assembler.max_axial_load_n = new.max_axial_load_n

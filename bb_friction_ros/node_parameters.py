@@ -24,8 +24,14 @@ class NodeParameters:
     config_file: str = field("", None, "model file: ball-screw YAML, optionally with "
                              "empirical_terms (empty: the bundled config/ball_screw.yaml)")
     nut_joint: str = field("nut_joint", None, "name of the nut joint in nut_state")
-    model_rate_hz: float = field(100.0, "Hz", "whole-screw model steps per second of input "
-                                 "time", lo=1.0, hi=2000.0)
+    model_rate_hz: float = field(100.0, "Hz", "least whole-screw model steps per second of "
+                                 "input time (the floor when the nut creeps or stands)",
+                                 lo=1.0, hi=2000.0)
+    model_step_deg: float = field(3.6, "deg", "nut rotation between whole-screw model steps "
+                                  "(bench/bench_convergence.py)", lo=0.05, hi=90.0)
+    max_model_step_deg: float = field(36.0, "deg", "coarsest step the live model takes when "
+                                      "it cannot keep up (counted in diagnostics)", lo=0.05,
+                                      hi=360.0)
     queue_size: int = field(256, "1", "inputs waiting for the model thread; when full the "
                             "oldest is dropped (newest wins)", lo=1, hi=100000)
     groups_rate_hz: float = field(10.0, "Hz", "contact-group status rate", lo=0.1, hi=1000.0)
@@ -53,13 +59,17 @@ class NodeParameters:
         if not self.nut_joint.strip():
             raise ConfigError(f"{path}.nut_joint: must be a non-empty joint name, got "
                               f"{self.nut_joint!r}")
+        if self.max_model_step_deg < self.model_step_deg:
+            raise ConfigError(f"{path}.max_model_step_deg: must be >= model_step_deg = "
+                              f"{self.model_step_deg:g} deg, got {self.max_model_step_deg:g}")
 
 
 # Changeable while the node runs; a change of a MODEL_PARAMETERS one rebuilds the model.
 RUNTIME = frozenset({"nut_joint", "model_rate_hz", "groups_rate_hz", "max_axial_load_n",
                      "config_file", "max_answer_age_s", "profile_horizon_periods",
-                     "profile_points"})
-MODEL_PARAMETERS = frozenset({"config_file", "model_rate_hz"})
+                     "profile_points", "model_step_deg", "max_model_step_deg"})
+MODEL_PARAMETERS = frozenset({"config_file", "model_rate_hz", "model_step_deg",
+                              "max_model_step_deg"})
 FIELDS = {f.name: f for f in dataclasses.fields(NodeParameters)}
 # declared by rclpy itself for every node: in a params file, neither ours nor unknown
 ROS_BUILTIN_PARAMETERS = frozenset({"use_sim_time", "start_type_description_service"})

@@ -2,16 +2,26 @@
 Input validation and the model runner shared by the live node and bag replay.
 
 The node and ``bb-friction replay`` both feed samples, in order, to one ``ModelRunner``: the
-same validation, the same model-step schedule (driven by header stamps, never by wall time)
-and the same prediction rule.  Given the same accepted samples they give the same output,
-which is what makes replay a faithful stand-in for the live node.
+same validation, the same model-step schedule (driven by the nut angle and the header
+stamps, never by wall time) and the same prediction rule.  Given the same accepted samples
+they give the same output, which is what makes replay a faithful stand-in for the live node.
 
-Schedule: the whole-screw model steps when the input stamps have advanced by at least one
-model period (``1 / model_rate_hz``) since its last step, or at once when the direction of
-the nut motion changes (start, stop, reversal); it then advances the ball azimuths by the
-measured nut rotation since that step.  Every nut-state sample gets a prediction from
-the latest model state (zero-order hold; its age is reported), so the output keeps the input
-rate while the model runs at its own rate.
+Schedule (issue 20): the whole-screw model is quasi-static, its balls follow the nut angle,
+so it steps by nut rotation: when the nut has turned ``model_step_deg`` since the last step,
+at once when the direction of the nut motion changes (start, stop, reversal), and, as a
+floor when the nut creeps or stands, when the input stamps have advanced by one model period
+(``1 / model_rate_hz``).  A step advances the ball azimuths by the measured nut rotation since
+the last one.  Stamps that do not advance (a driver leaving ``header.stamp`` at 0) leave the
+floor no time: they are counted (``stats.stamp_stalls``), and a change of the axial load then
+steps at once.  Every nut-state sample gets a prediction from the latest model state
+(zero-order hold; its age in input time is reported), so the output keeps the input rate
+while the model steps at its own.
+
+Falling behind (the live node only: replay always steps): a sample that cannot step
+(``process(sample, allow_step=False)``) is answered from the current state, and the schedule
+turns coarser, the step and the floor doubled (up to ``max_model_step_deg``), rather than
+building a backlog; after ``RELAX_AFTER_STEPS`` steps with none skipped it halves again.
+Steps taken coarser are counted (``stats.coarse_steps``); only then do live and replay differ.
 
 Feedforward policy (a step that did not converge): the prediction keeps the model's raw
 numbers with ``converged = False``, but ``feedforward_nm``, the value meant for a controller,
@@ -19,10 +29,14 @@ holds the torque of the last converged step while the nut keeps moving in that s
 direction, and is 0 N m otherwise (after a reversal, at standstill, or before any converged
 step): an unconverged solve can swing by tens of N m, and the old direction's friction after
 a reversal would push the axis the wrong way.  ``feedforward_held`` says the value is held.
+The same rule covers a converged state: a sample that stands still, or that moves against
+the direction of the state answering it (a reversal whose step was skipped because the live
+model fell behind), gets 0 N m, counted in ``stats.feedforward_zeroed`` (issue 23, finding 1).
 
 Look-ahead (``look_ahead_profile``): after a step, a copy of the model state is stepped ahead
-along the extrapolated motion (same velocity and load) to give the torque at a row of angles
-ahead of the input; a controller interpolates in it (``feedforward.FeedforwardInterpolator``).
+along the extrapolated motion (same velocity and load) to give the torque at a row of nut
+angles ahead of the input, spaced in angle; a controller interpolates in it
+(``feedforward.FeedforwardInterpolator``).
 """
 
 from collections import Counter
@@ -42,6 +56,13 @@ from bb_friction_ros.model_file import load_model_file, NoPhysics, physics_of
 # so five 2 ms intervals may sum to 9.9999998 ms.  Without this slack a 100 Hz model stepped
 # every 12 ms on 500 Hz input (measured: 84 Hz in bench/bench_node.py).
 STAMP_RESOLUTION_S = 1e-6
+# Nut angles are compared as float radians too: a step of exactly model_step_deg computed as
+# w * t may come out a few ulp short of it; 1e-9 rad is far below any encoder's resolution.
+ANGLE_RESOLUTION_RAD = 1e-9
+# A schedule made coarser because the live model fell behind returns to half that step after
+# this many steps with none skipped (the load may have been a transient); a CPU that cannot
+# keep the finer step skips again at once and the step doubles back.
+RELAX_AFTER_STEPS = 200
 
 
 @dataclass(frozen=True)
@@ -135,6 +156,13 @@ class RunnerStats:
     model_steps: int = 0
     nonconverged_steps: int = 0
     skipped_steps: int = 0
+    # answers whose converged torque was not fed forward (0 N m instead): the sample stands
+    # still or moves against the state's direction (a reversal whose step was skipped)
+    feedforward_zeroed: int = 0
+    coarse_steps: int = 0           # steps taken at a coarser schedule (live model behind)
+    coarsenings: int = 0            # times the schedule was made coarser
+    stamp_stalls: int = 0           # samples whose stamp equals the previous sample's
+    term_restarts: int = 0          # empirical terms' clock and filter restarted mid-stream
     resets: int = 0
     rejected: Counter = field(default_factory=Counter)   # by reason, inputs of both topics
     rejected_nut_state: int = 0     # nut-state samples never answered (in ``rejected`` too)
@@ -152,24 +180,47 @@ class ModelRunner:
     ``n_balls``.
     """
 
-    def __init__(self, screw, model_rate_hz, terms=None):
+    def __init__(self, screw, model_rate_hz, terms=None, model_step_deg=None,
+                 max_model_step_deg=None):
         """
-        Wrap ``screw``; it steps at most once per 1/model_rate_hz of input time.
+        Wrap ``screw``, stepped by nut rotation with a time floor (module docstring).
 
+        It steps every ``model_step_deg`` of nut rotation, at every change of direction, and
+        at least once per 1/model_rate_hz of input time.  ``model_step_deg`` None: the node's
+        default; ``max_model_step_deg`` (None: the node's default) bounds the coarser steps
+        taken when the live model falls behind.
         ``terms`` (an empirical_terms.TermSet, optional) adds fitted empirical torque, evaluated
         at every sample's own inputs; its time is the stamp since the run's first sample.
         """
+        from bb_friction_ros.node_parameters import NodeParameters
+        defaults = NodeParameters()
+        if model_step_deg is None:
+            model_step_deg = defaults.model_step_deg
+        if max_model_step_deg is None:
+            max_model_step_deg = max(defaults.max_model_step_deg, model_step_deg)
         if not model_rate_hz > 0:
             raise ValueError(f"model_rate_hz must be > 0, got {model_rate_hz}")
+        if not 0.0 < model_step_deg <= max_model_step_deg:
+            raise ValueError(f"model_step_deg must be > 0 and <= max_model_step_deg, got "
+                             f"{model_step_deg} and {max_model_step_deg}")
         self.screw = screw
         self.terms = terms
         # stateful per-sample evaluation: the inertia term's causal acceleration filter
         self._live_terms = terms.live() if terms is not None else None
         self._first_stamp = None
         self.period_s = 1.0 / model_rate_hz
+        self.step_rad = math.radians(model_step_deg)
+        # coarsening when behind: the step and the time floor are multiplied by a power of
+        # two, at most max_model_step_deg / model_step_deg
+        self.max_scale = max_model_step_deg / model_step_deg
+        self.scale = 1.0
+        self._clean_steps = 0       # steps at this scale with none skipped
+        self._coarsened = False     # the scale went up since the last step
         self.stats = RunnerStats()
         self._last_stamp = None
         self._model_stamp = None
+        self._model_angle = 0.0
+        self._model_load = 0.0
         self._model_direction = 0.0
         self._state = None
         self._held = None           # (torque, direction) of the last converged step
@@ -184,6 +235,49 @@ class ModelRunner:
             self._live_terms.reset()
         self._held = None
 
+    def continue_from(self, old):
+        """
+        Take over from ``old``, the runner this one replaces (a runtime parameter change).
+
+        The counters go on (diagnostics stay cumulative).  With the same empirical terms the
+        terms' run clock and acceleration filter carry over (issue 23, finding 7: a
+        ``thermal_drift`` term would otherwise restart from 0); the model state itself does
+        not (the next sample starts a new run of the balls).  Returns True if the terms'
+        clock carried over; False (counted in ``stats.term_restarts`` when this runner has
+        terms) if they restart.
+        """
+        self.stats = old.stats
+        same = self.terms is not None and old.terms is not None \
+            and self.terms.to_list() == old.terms.to_list()
+        if same and old._first_stamp is not None:
+            self._live_terms = old._live_terms
+            self._first_stamp = old._first_stamp
+            self._last_stamp = old._last_stamp
+            return True
+        if self.terms is not None and old._first_stamp is not None:
+            self.stats.term_restarts += 1
+        return False
+
+    @property
+    def model_step_rad(self):
+        """Nut rotation between scheduled steps now [rad] (coarser when behind)."""
+        return self.step_rad * self.scale
+
+    def _due(self, sample):
+        """Whether a step is due for ``sample`` (a state exists, stamps not backwards)."""
+        if _sign(sample.nut_velocity_rad_s) != self._model_direction:
+            return True
+        if abs(sample.nut_angle_rad - self._model_angle) \
+                >= self.step_rad * self.scale - ANGLE_RESOLUTION_RAD:
+            return True
+        if sample.stamp_s - self._model_stamp \
+                >= self.period_s * self.scale - STAMP_RESOLUTION_S:
+            return True
+        # Stamps that do not advance leave the time floor no time: a load change then steps
+        # at once, so a state of another load is never answered as fresh (issue 23, 2).
+        return sample.stamp_s == self._last_stamp \
+            and sample.axial_load_n != self._model_load
+
     def step_due(self, sample):
         """
         Return True if ``process(sample)`` would step the model (or reset it).
@@ -193,8 +287,7 @@ class ModelRunner:
         if self._state is None or self._last_stamp is None \
                 or sample.stamp_s < self._last_stamp:
             return True
-        return (sample.stamp_s - self._model_stamp >= self.period_s - STAMP_RESOLUTION_S
-                or _sign(sample.nut_velocity_rad_s) != self._model_direction)
+        return self._due(sample)
 
     def warm_up(self, axial_load_n, nut_velocity_rad_s):
         """
@@ -217,8 +310,9 @@ class ModelRunner:
         Advance the model if a step is due and return the Prediction for ``sample``.
 
         With ``allow_step=False`` (the live node catching up on a backlog: only the newest
-        input may step the model) the sample is answered from the current state, and a
-        step it would have triggered is counted in ``stats.skipped_steps``.
+        input may step the model) the sample is answered from the current state, a step it
+        would have triggered is counted in ``stats.skipped_steps``, and the schedule turns
+        coarser (``scale`` doubles, up to ``max_scale``; module docstring).
 
         A model step that raises must stop neither the node nor replay, and both must then
         agree: the sample gets no prediction (None), it is counted as rejected
@@ -236,28 +330,29 @@ class ModelRunner:
         if self._last_stamp is not None and sample.stamp_s < self._last_stamp:
             # A bag loop or a restarted source: the balls' history no longer applies.
             self.stats.resets += 1
+            if self._live_terms is not None:
+                self.stats.term_restarts += 1
             self.reset()
         self.stats.samples += 1
-        self._last_stamp = sample.stamp_s
+        if sample.stamp_s == self._last_stamp:
+            self.stats.stamp_stalls += 1
         stepped = False
         if self._state is None:
-            self._first_stamp = sample.stamp_s
+            if self._first_stamp is None:   # else kept from the runner this one replaced
+                self._first_stamp = sample.stamp_s
             self.screw.reset(sample.nut_angle_rad)
-            self._state = self._step(sample, 0.0)
-            self._model_stamp = sample.stamp_s
-            self._model_direction = _sign(sample.nut_velocity_rad_s)
+            self._take_step(sample, 0.0)
             stepped = True
-        elif (sample.stamp_s - self._model_stamp >= self.period_s - STAMP_RESOLUTION_S
-              or _sign(sample.nut_velocity_rad_s) != self._model_direction):
+        elif self._due(sample):
             # A reversal (or a start/stop) is due at once: Coulomb friction flips there, and
             # a held torque of the old sign is the worst feed-forward a controller can get.
             if allow_step:
-                self._state = self._step(sample, sample.stamp_s - self._model_stamp)
-                self._model_stamp = sample.stamp_s
-                self._model_direction = _sign(sample.nut_velocity_rad_s)
+                self._take_step(sample, sample.stamp_s - self._model_stamp)
                 stepped = True
             else:
                 self.stats.skipped_steps += 1
+                self._coarsen()
+        self._last_stamp = sample.stamp_s
         st = self._state
         extra = 0.0
         if self._live_terms is not None:
@@ -268,7 +363,14 @@ class ModelRunner:
         if stepped:
             self._update_held(total, sample.nut_velocity_rad_s)
         converged = self._state_converged
-        if converged:
+        direction = _sign(sample.nut_velocity_rad_s)
+        if direction == 0.0 or direction != self._model_direction:
+            # A state of the other direction (a skipped reversal step) or a standing nut:
+            # the state's Coulomb torque would push the axis the wrong way, or hold it.
+            ff, held = 0.0, False
+            if converged and total != 0.0:
+                self.stats.feedforward_zeroed += 1
+        elif converged:
             ff, held = total, False
         else:
             ff, held = 0.0, True
@@ -280,6 +382,32 @@ class ModelRunner:
                           st.torque_b2b_nm, extra, converged,
                           sample.stamp_s - self._model_stamp, self._state_groups,
                           self._state_n_balls, stepped, ff, held)
+
+    def _take_step(self, sample, dt_s):
+        """Step the model to ``sample`` and make it the schedule's reference."""
+        self._state = self._step(sample, dt_s)
+        self._model_stamp = sample.stamp_s
+        self._model_angle = sample.nut_angle_rad
+        self._model_load = sample.axial_load_n
+        self._model_direction = _sign(sample.nut_velocity_rad_s)
+        if self.scale > 1.0:
+            self.stats.coarse_steps += 1
+            if not self._coarsened:
+                self._clean_steps += 1
+                if self._clean_steps >= RELAX_AFTER_STEPS:
+                    # kept up for a while at this scale: try the finer step again
+                    self.scale = max(1.0, self.scale / 2.0)
+                    self._clean_steps = 0
+        self._coarsened = False
+
+    def _coarsen(self):
+        """Double the step (once per step taken, up to max): the live model fell behind."""
+        if self._coarsened or self.scale >= self.max_scale:
+            return
+        self.scale = min(2.0 * self.scale, self.max_scale)
+        self._clean_steps = 0
+        self._coarsened = True
+        self.stats.coarsenings += 1
 
     def _step(self, sample, dt_s):
         t0 = time.perf_counter()
@@ -316,8 +444,9 @@ class ModelRunner:
         """
         accel = None if self._live_terms is None else self._live_terms.last_accel_rad_s2
         return ProfileSeed(copy.copy(self.screw), sample, self._state.torque_total_nm,
-                           self._state_converged, self.period_s, self.terms,
-                           sample.stamp_s - self._first_stamp, accel)
+                           self._state_converged, self.period_s * self.scale, self.terms,
+                           sample.stamp_s - self._first_stamp, accel,
+                           self.step_rad * self.scale)
 
 
 @dataclass(frozen=True)
@@ -328,23 +457,38 @@ class ProfileSeed:
     sample: InputSample
     torque_total_nm: float      # the step's own torque (model only, no empirical terms)
     converged: bool
-    period_s: float
+    period_s: float             # the schedule's time floor [s]
     terms: object
     run_time_s: float           # stamp since the run's first sample (empirical terms' time)
     # the inertia term's causal acceleration at the sample, held over the horizon (the
     # extrapolated velocity is constant, but the filter's alpha is the best guess of the
     # inertia torque for the next few ms); None without an inertia term
     nut_accel_rad_s2: object = None
+    step_rad: float = 0.0       # the schedule's nut rotation between steps [rad]
+
+
+def profile_horizon_rad(seed, horizon_periods):
+    """
+    Nut rotation the look-ahead covers [rad]: ``horizon_periods`` model periods of motion.
+
+    A model period is the time floor's (``period_s``, the look-ahead the profile had when
+    the model stepped by the clock), or, when the nut creeps so slowly that it turns less
+    than one model step in it, the model step: the profile never covers less than
+    ``horizon_periods`` steps of the angle schedule.
+    """
+    w = abs(seed.sample.nut_velocity_rad_s)
+    return horizon_periods * max(w * seed.period_s, seed.step_rad)
 
 
 def look_ahead_profile(seed, horizon_periods=2.0, n_points=3, should_stop=None):
     """
     Predicted friction torque ahead of a model step, at constant velocity and load.
 
-    Points: the step's own angle psi_0 (its torque equals the prediction there), then
-    ``n_points - 1`` angles evenly spaced up to psi_0 + sign(omega) * |omega| * horizon,
-    horizon = ``horizon_periods`` model periods of motion; a copy of the model is stepped to
-    each in turn.  At standstill (omega = 0) the profile is the single point psi_0.
+    Points, in the nut-angle domain: the step's own angle psi_0 (its torque equals the
+    prediction there), then ``n_points - 1`` angles evenly spaced up to
+    psi_0 + sign(omega) * ``profile_horizon_rad``; a copy of the model is stepped to each in
+    turn (the time between points, for the empirical terms and the step, is the angle over
+    |omega|).  At standstill (omega = 0) the profile is the single point psi_0.
     Returns (angles [rad], torques [N m], converged), or None if ``should_stop()`` became
     true between two steps (the live node gives way to a pending model step).
     """
@@ -363,11 +507,12 @@ def look_ahead_profile(seed, horizon_periods=2.0, n_points=3, should_stop=None):
     if w == 0.0 or n_points < 2:
         return angles, torques, converged
     screw = seed.screw
-    dt = horizon_periods * seed.period_s / (n_points - 1)
+    d_angle = math.copysign(profile_horizon_rad(seed, horizon_periods) / (n_points - 1), w)
+    dt = d_angle / w
     for i in range(1, n_points):
         if should_stop is not None and should_stop():
             return None
-        angle = s.nut_angle_rad + w * dt * i
+        angle = s.nut_angle_rad + d_angle * i
         res = screw.step(angle, w, s.axial_load_n, dt)
         angles.append(angle)
         torques.append(res.torque_total_nm + extra(dt * i, angle))
@@ -386,9 +531,24 @@ class InputAssembler:
 
     def __init__(self, nut_joint, max_axial_load_n):
         """Validate nut-state messages against ``nut_joint`` and loads against the limit."""
+        self.load_n = None
+        self._refused_load = None   # held load refused by a lowered limit: (load, limit)
         self.nut_joint = nut_joint
         self.max_axial_load_n = max_axial_load_n
-        self.load_n = None
+
+    @property
+    def max_axial_load_n(self):
+        """Largest accepted |axial load| [N]."""
+        return self._max_axial_load_n
+
+    @max_axial_load_n.setter
+    def max_axial_load_n(self, value):
+        # A limit lowered at runtime applies to the load already held too (issue 23,
+        # finding 10): samples are refused until a load within the new limit arrives.
+        self._max_axial_load_n = value
+        if self.load_n is not None and abs(self.load_n) > value:
+            self._refused_load = (self.load_n, value)
+            self.load_n = None
 
     @property
     def nut_joint(self):
@@ -405,6 +565,7 @@ class InputAssembler:
     def on_axial_load(self, force_z_n):
         """Hold a new axial load [N]."""
         self.load_n = axial_load_value(force_z_n, self.max_axial_load_n)
+        self._refused_load = None
 
     def on_nut_state(self, stamp_s, names, positions, velocities):
         """Return the InputSample of a nut-state message."""
@@ -412,21 +573,28 @@ class InputAssembler:
             raise InputError("non_finite", f"stamp {stamp_s}")
         angle, velocity = joint_state_sample(names, positions, velocities, self.nut_joint)
         if self.load_n is None:
+            if self._refused_load is not None:
+                load, limit = self._refused_load
+                raise InputError("absurd_load", f"held |force.z| = {abs(load):.6g} N exceeds "
+                                 f"max_axial_load_n = {limit:.6g} N (lowered while held); "
+                                 "waiting for a new axial_load")
             raise InputError("no_load_yet", "no valid axial_load received yet")
         return InputSample(stamp_s, angle, velocity, self.load_n)
 
 
-def build_runner(config_path, model_rate_hz):
+def build_runner(config_path, model_rate_hz, model_step_deg=None, max_model_step_deg=None):
     """
     Build a ModelRunner around the whole-screw model of a model file.
 
     Its ``empirical_terms`` (``augmented.yaml`` of the discrepancy workflow) add their fitted
-    torque to every prediction.
+    torque to every prediction.  ``model_step_deg``/``max_model_step_deg`` None: the node's
+    defaults (``node_parameters.NodeParameters``).
     """
     cfg, terms = load_model_file(config_path)
     # physics: none (a discrepancy --baseline zero model): the terms are the whole torque
     screw = NoPhysics() if physics_of(config_path) == "none" else WholeScrew(cfg)
-    runner = ModelRunner(screw, model_rate_hz, terms if len(terms) else None)
+    runner = ModelRunner(screw, model_rate_hz, terms if len(terms) else None,
+                         model_step_deg, max_model_step_deg)
     runner.warm_up(cfg.operation.axial_load_n, cfg.operation.nut_velocity_rad_s)
     return runner
 

@@ -28,6 +28,11 @@ BAD_VALUES = [   # issue 13 finding 23: replay accepted the first two, and "fast
     ("max_answer_age_s", 1, "max_answer_age_s: expected a double"),
     ("profile_horizon_periods", 1.0, "profile_horizon_periods: must be >= 2.0"),
     ("profile_points", 1, "profile_points: must be >= 2"),
+    # issue 20: the angle schedule
+    ("model_step_deg", 0.0, "model_step_deg: must be >= 0.05 deg"),
+    ("model_step_deg", 3, "model_step_deg: expected a double"),
+    ("model_step_deg", 40.0, "max_model_step_deg: must be >= model_step_deg = 40 deg"),
+    ("max_model_step_deg", 1.0, "max_model_step_deg: must be >= model_step_deg"),
 ]
 
 

@@ -124,3 +124,185 @@ def test_model_error_is_counted_and_resets_in_the_shared_runner():
     assert "solver blew up" in runner.stats.last_error
     assert screw.calls[-2] == ("reset", 0.03)      # a new run starts after the failure
     assert preds[-1].stepped and preds[-1].model_age_s == 0.0
+
+
+def _opposes_motion(pred):
+    """The feedforward pushes against the sample's motion, or is not 0 at standstill."""
+    w = pred.nut_velocity_rad_s
+    return pred.feedforward_nm * w < 0.0 or (w == 0.0 and pred.feedforward_nm != 0.0)
+
+
+def test_skipped_reversal_never_feeds_forward_the_old_direction():
+    """
+    Issue 23, finding 1: an axis holding position with +-0.02 rad/s velocity noise flipping
+    sign every 1 kHz sample, the model allowed to step on one sample in ten (the live node
+    behind): no feedforward opposes the motion, standstill gets 0 N m, and it is counted.
+    """
+    from bb_friction_ros.config import bundled_config
+    from bb_friction_ros.runner import build_runner
+    runner = build_runner(bundled_config("ball_screw.yaml"), 100.0)
+    preds = []
+    for k in range(400):
+        w = 0.0 if k % 50 == 49 else (0.02 if k % 2 == 0 else -0.02)
+        s = InputSample(1e-3 * k, 1e-5 * (k % 2), w, 1500.0)
+        preds.append(runner.process(s, allow_step=(k % 10 == 0)))
+    assert runner.stats.skipped_steps > 100, "no reversal step was skipped: test is void"
+    assert not [p for p in preds if _opposes_motion(p)]
+    # the state's torque is fed forward where its direction matches (not all zeroed)
+    assert sum(p.converged and p.feedforward_nm != 0.0 for p in preds) > 100
+    assert runner.stats.feedforward_zeroed > 100
+    # the converged torque itself is kept in the prediction, only the feedforward is 0
+    assert any(p.converged and p.torque_total_nm * p.nut_velocity_rad_s < 0 for p in preds)
+
+
+def test_lowered_load_limit_applies_to_the_held_load():
+    """Issue 23, finding 10: 5000 N held, the limit lowered to 1000 N: the next sample is
+    refused (absurd_load, naming the held load) until a load within the limit arrives."""
+    asm = InputAssembler("nut_joint", 1e5)
+    asm.on_axial_load(-5000.0)
+    assert asm.on_nut_state(0.0, ("nut_joint",), (0.0,), (1.0,)).axial_load_n == -5000.0
+    asm.max_axial_load_n = 1000.0
+    with pytest.raises(InputError, match="5000 N exceeds max_axial_load_n = 1000 N") as err:
+        asm.on_nut_state(0.001, ("nut_joint",), (0.0,), (1.0,))
+    assert err.value.reason == "absurd_load"
+    asm.on_axial_load(800.0)
+    assert asm.on_nut_state(0.002, ("nut_joint",), (0.0,), (1.0,)).axial_load_n == 800.0
+    asm.max_axial_load_n = 900.0      # still within: kept
+    assert asm.on_nut_state(0.003, ("nut_joint",), (0.0,), (1.0,)).axial_load_n == 800.0
+
+
+def _steps_at(runner, samples):
+    return [k for k, s in enumerate(samples) if runner.process(s).stepped]
+
+
+@pytest.mark.parametrize("rev_s,every", [
+    (20.0, 1),      # 7.2 deg per 1 kHz sample: a 3.6 deg step is due at every sample
+    (2.0, 5),       # 0.72 deg per sample: every 5th (3.6 deg)
+    (0.01, 10),     # creeping: the 100 Hz time floor
+])
+def test_schedule_steps_by_nut_rotation_with_a_time_floor(rev_s, every):
+    """Issue 20, item 1: a step every model_step_deg of nut rotation, at least every period."""
+    w = 2 * math.pi * rev_s
+    runner = ModelRunner(RecordingScrew(), model_rate_hz=100.0, model_step_deg=3.6)
+    samples = [InputSample(5.0 + k * 1e-3, 0.3 + w * k * 1e-3, w, 100.0) for k in range(41)]
+    assert _steps_at(runner, samples) == list(range(0, 41, every))
+
+
+def test_schedule_step_is_the_nut_rotation_either_way():
+    """Backwards rotation steps the same; a step's reference is the angle it was taken at."""
+    runner = ModelRunner(RecordingScrew(), model_rate_hz=1.0, model_step_deg=10.0)
+    d = math.radians(1.0)
+    angles = [-d * k for k in range(25)]
+    samples = [InputSample(1e-3 * k, a, -1.0, 100.0) for k, a in enumerate(angles)]
+    assert _steps_at(runner, samples) == [0, 10, 20]
+
+
+@pytest.mark.parametrize("stamp", [0.0, 1234.5])
+def test_stalled_stamps_step_on_angle_and_load_and_are_counted(stamp):
+    """
+    Issue 23, finding 2: every stamp equal (a driver leaving header.stamp at 0, or one stamp
+    repeated).  The model still steps by nut rotation, and at once when the load changes, so
+    an answer with model_age_s = 0 is never from a state of another load; stalls are counted.
+    """
+    screw = RecordingScrew()
+    runner = ModelRunner(screw, model_rate_hz=100.0, model_step_deg=3.6)
+    d = math.radians(0.9)
+    preds = [runner.process(InputSample(stamp, d * k, 1.0, 1500.0)) for k in range(9)]
+    assert [p.stepped for p in preds] == [k % 4 == 0 for k in range(9)]
+    loads = [1500.0, 6000.0, 6000.0, 6000.0, 2000.0]
+    preds = [runner.process(InputSample(stamp, 8 * d, 1.0, f)) for f in loads]
+    assert [p.stepped for p in preds] == [False, True, False, False, True]
+    assert runner.stats.stamp_stalls == 13
+    assert runner.stats.resets == 0
+
+
+def test_stalled_stamps_follow_the_load_in_the_real_model():
+    """The issue's case: load 1500 -> 6000 N on stamps all 0 moves the torque as it should."""
+    from bb_friction_ros.config import bundled_config
+    from bb_friction_ros.runner import build_runner
+    cfg = bundled_config("ball_screw.yaml")
+    w = 2 * math.pi
+
+    def run(stamps):
+        runner = build_runner(cfg, 100.0)
+        out = []
+        for k in range(60):
+            load = 1500.0 if k < 30 else 6000.0
+            out.append(runner.process(InputSample(stamps(k), w * k * 1e-3, w, load)))
+        return out, runner
+
+    stalled, runner = run(lambda k: 0.0)
+    advancing, _ = run(lambda k: 1e-3 * k)
+    assert runner.stats.stamp_stalls == 59
+    # the first sample at 6000 N steps, and the torque follows the load (~4x at 4x the load)
+    assert stalled[30].stepped and stalled[30].model_age_s == 0.0
+    assert stalled[59].torque_total_nm == pytest.approx(advancing[59].torque_total_nm,
+                                                        rel=0.02)
+    assert stalled[59].torque_total_nm > 3.0 * stalled[29].torque_total_nm
+
+
+def _drift_terms():
+    from bb_friction_ros.empirical_terms import load_terms
+    return load_terms([{"name": "thermal_drift",
+                        "params": {"delta_torque_nm": 0.5, "time_constant_s": 2.0}}])
+
+
+def test_rebuild_with_the_same_terms_keeps_their_clock():
+    """
+    Issue 23, finding 7: a runner rebuilt mid-run (a runtime parameter change) continues a
+    thermal_drift term where it was; a runner with other terms restarts them, counted.
+    """
+    old = ModelRunner(RecordingScrew(), 100.0, _drift_terms())
+    for k in range(6):
+        p = old.process(InputSample(10.0 + k, 0.0, 1.0, 100.0))
+    before = p.torque_empirical_nm
+    assert before > 0.4                  # 5 s into a 2 s time constant
+    new = ModelRunner(RecordingScrew(), 200.0, _drift_terms())
+    assert new.continue_from(old)
+    after = new.process(InputSample(16.0, 0.0, 1.0, 100.0))
+    assert after.torque_empirical_nm >= before and after.stepped
+    assert new.stats is old.stats and new.stats.term_restarts == 0
+    other = ModelRunner(RecordingScrew(), 100.0, None)
+    assert not other.continue_from(new)
+    from bb_friction_ros.empirical_terms import load_terms
+    changed = ModelRunner(RecordingScrew(), 100.0, load_terms([{
+        "name": "thermal_drift", "params": {"delta_torque_nm": 0.1, "time_constant_s": 2.0}}]))
+    assert not changed.continue_from(new)
+    assert changed.stats is old.stats and changed.stats.term_restarts == 1
+    assert changed.process(InputSample(17.0, 0.0, 1.0, 100.0)).torque_empirical_nm == 0.0
+
+
+def test_falling_behind_takes_coarser_steps_and_recovers():
+    """
+    Issue 20, item 3: a skipped step doubles the schedule's step (once per step taken, up to
+    max_model_step_deg), steps taken coarser are counted, and after RELAX_AFTER_STEPS clean
+    steps the step halves again.  Replay never skips, so it never coarsens.
+    """
+    from bb_friction_ros.runner import RELAX_AFTER_STEPS
+    runner = ModelRunner(RecordingScrew(), model_rate_hz=1.0, model_step_deg=1.0,
+                         max_model_step_deg=4.0)
+    d = math.radians(1.0)
+    k = 0
+
+    def feed(n, allow):
+        nonlocal k
+        out = []
+        for _ in range(n):
+            out.append(runner.process(InputSample(1e-3 * k, d * k, 1.0, 100.0), allow))
+            k += 1
+        return out
+
+    assert all(p.stepped for p in feed(3, True))
+    assert not feed(1, False)[0].stepped and runner.scale == 2.0
+    assert not feed(1, False)[0].stepped and runner.scale == 2.0      # once per step
+    assert feed(1, True)[0].stepped                                    # 3 deg since the last
+    feed(2, False)                                                     # 1 deg: not due; 2: due
+    assert runner.scale == 4.0 and runner.stats.coarsenings == 2
+    feed(2, False)
+    assert runner.scale == 4.0                                         # the max
+    steps = [p.stepped for p in feed(12, True)]
+    assert steps == [True, False, False, False] * 3                    # every 4 deg now
+    assert runner.stats.coarse_steps == 4 and runner.stats.skipped_steps == 4
+    feed(4 * RELAX_AFTER_STEPS, True)
+    assert runner.scale == 2.0
+    assert runner.step_rad == pytest.approx(d)
