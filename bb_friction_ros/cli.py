@@ -205,6 +205,10 @@ def _run_replay(args):
     except (FileNotFoundError, BBFrictionError) as exc:   # BagError, NothingAccepted included
         print(f"bb-friction replay: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:      # issue 23 #16: no traceback; summary.json says complete: false
+        print(f"bb-friction replay: interrupted; the outputs in {args.out} are partial "
+              "(summary.json: \"complete\": false)", file=sys.stderr)
+        return 130
     print(json.dumps({k: summary[k] for k in ("samples", "rejected", "nonconverged_steps",
                                               "speed_vs_realtime")
                       + (("rmse_nm",) if "rmse_nm" in summary else ())}))
@@ -271,9 +275,10 @@ def _run_demo(args):
     import os
     from pathlib import Path
     from bb_friction_ros.demo import run_demo
+    from bb_friction_ros.interface import local_domain_id
     # DDS stays on this machine, on a domain of this run's own (set before rclpy.init).
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    os.environ.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 101))
+    os.environ.setdefault("ROS_DOMAIN_ID", str(local_domain_id()))
     return run_demo(Path(args.out), _demo_events(), speed=args.speed)
 
 
