@@ -28,7 +28,7 @@ setup(
             'bb-friction = bb_friction_ros.cli:main',
             'friction_node = bb_friction_ros.node_entry:main',
         ],
-        # the friction_node fixture for launch-free tests (bb_friction_ros/testing.py)
-        'pytest11': ['bb_friction_ros = bb_friction_ros.testing'],
+        # the friction_node fixture for launch-free tests (bb_friction_ros/pytest_plugin.py)
+        'pytest11': ['bb_friction_ros = bb_friction_ros.pytest_plugin'],
     },
 )

@@ -22,14 +22,14 @@ import struct
 import numpy as np
 import yaml
 
+from bb_friction_ros import interface
 from bb_friction_ros.config import BBFrictionError
+from bb_friction_ros.interface import JOINT_STATE, MSGS_PACKAGE, WRENCH_STAMPED
 
-JOINT_STATE = "sensor_msgs/msg/JointState"
-WRENCH_STAMPED = "geometry_msgs/msg/WrenchStamped"
-MSGS_PACKAGE = "bb_friction_msgs"
-# The message type each input kind must have, and the CLI flag that names its topic.
-KIND_TYPES = {"nut_state": JOINT_STATE, "axial_load": WRENCH_STAMPED,
-              "measured_torque": WRENCH_STAMPED}
+# The message type each input kind must have (a kind is named after its default topic), and
+# the CLI flag that names its topic.
+KIND_TYPES = {kind: interface.TYPES[kind] for kind in
+              (interface.NUT_STATE, interface.AXIAL_LOAD, interface.MEASURED_TORQUE)}
 KIND_FLAGS = {"nut_state": "--nut-state-topic", "axial_load": "--axial-load-topic",
               "measured_torque": "--measured-topic"}
 # Joint names listed in an error about nut_state: enough to spot a misnamed joint.
@@ -50,20 +50,20 @@ class Topics:
     (``/robot/nut_state``) is used only when named so: it is never guessed.
     """
 
-    nut_state: str = "nut_state"
-    axial_load: str = "axial_load"
-    measured_torque: str = "measured_torque"
+    nut_state: str = interface.NUT_STATE
+    axial_load: str = interface.AXIAL_LOAD
+    measured_torque: str = interface.MEASURED_TORQUE
 
     @staticmethod
     def add_arguments(parser):
         """Add the flags naming a recording's topics (replay, discrepancy) to ``parser``."""
-        parser.add_argument("--nut-state-topic", default="nut_state",
+        parser.add_argument("--nut-state-topic", default=interface.NUT_STATE,
                             help="nut state topic (sensor_msgs/JointState); a bag recorded "
                             "under a namespace needs its full name, e.g. /robot/nut_state")
-        parser.add_argument("--axial-load-topic", default="axial_load",
+        parser.add_argument("--axial-load-topic", default=interface.AXIAL_LOAD,
                             help="axial load topic (geometry_msgs/WrenchStamped force.z), "
                             "e.g. /robot/axial_load")
-        parser.add_argument("--measured-topic", default="measured_torque",
+        parser.add_argument("--measured-topic", default=interface.MEASURED_TORQUE,
                             help="measured torque topic (geometry_msgs/WrenchStamped "
                             "torque.z)")
 
@@ -75,8 +75,7 @@ class Topics:
 
     def absolute(self, kind):
         """Return the absolute topic name of ``kind`` ('nut_state', ...)."""
-        name = getattr(self, kind)
-        return name if name.startswith("/") else "/" + name
+        return interface.absolute(getattr(self, kind))
 
 
 @dataclass(frozen=True)

@@ -271,9 +271,10 @@ def _run_demo(args):
     import os
     from pathlib import Path
     from bb_friction_ros.demo import run_demo
+    from bb_friction_ros.interface import local_domain_id
     # DDS stays on this machine, on a domain of this run's own (set before rclpy.init).
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    os.environ.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 101))
+    os.environ.setdefault("ROS_DOMAIN_ID", str(local_domain_id()))
     return run_demo(Path(args.out), _demo_events(), speed=args.speed)
 
 

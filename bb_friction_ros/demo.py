@@ -16,7 +16,7 @@ def run_demo(out, events, speed=1.0):
     """
     import json
     from bb_friction_ros.bags import write_events
-    from bb_friction_ros.testing import play_through_node
+    from bb_friction_ros.harness import play_through_node
     from bb_friction_ros.replay import replay
     out.mkdir(parents=True, exist_ok=True)
     bag = out / "demo_bag"

@@ -49,6 +49,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
+from bb_friction_ros import interface
 from bb_friction_ros.config import bundled_config, ConfigError
 from bb_friction_ros.node_parameters import (MODEL_PARAMETERS, NODE_NAME, node_parameters,
                                              NodeParameters, ros_type, RUNTIME,
@@ -57,9 +58,6 @@ from bb_friction_ros.runner import (build_runner, InputAssembler, InputError,
                                     look_ahead_profile)
 
 GIL_SWITCH_INTERVAL_S = 2.5e-4
-# Topics this node publishes; another publisher on any of them is reported (two nodes?).
-OUTPUT_TOPICS = ("friction/prediction", "friction/feedforward",
-                 "friction/feedforward_profile", "friction/contact_groups")
 
 
 def _descriptor(f):
@@ -142,16 +140,17 @@ class FrictionNode(Node):
         self._out_input, self._out_model = (
             (FrictionPrediction(check_fields=False),
              Float64MultiArray(data=[0.0], check_fields=False)) for _ in range(2))
-        self._pub_pred = self.create_publisher(FrictionPrediction, "friction/prediction", 10)
-        self._pub_groups = self.create_publisher(ContactGroupStatus, "friction/contact_groups",
-                                                 10)
-        self._pub_ff = self.create_publisher(Float64MultiArray, "friction/feedforward", 10)
-        self._pub_profile = self.create_publisher(FeedforwardProfile,
-                                                  "friction/feedforward_profile", 10)
-        self._pub_diag = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        depth = interface.OUTPUT_QOS_DEPTH
+        self._pub_pred = self.create_publisher(FrictionPrediction, interface.PREDICTION, depth)
+        self._pub_groups = self.create_publisher(ContactGroupStatus, interface.CONTACT_GROUPS,
+                                                 depth)
+        self._pub_ff = self.create_publisher(Float64MultiArray, interface.FEEDFORWARD, depth)
+        self._pub_profile = self.create_publisher(FeedforwardProfile, interface.PROFILE, depth)
+        self._pub_diag = self.create_publisher(DiagnosticArray, interface.DIAGNOSTICS, depth)
         self._inputs = (
-            self.create_subscription(WrenchStamped, "axial_load", self._on_axial_load, qos),
-            self.create_subscription(JointState, "nut_state", self._on_nut_state, qos))
+            self.create_subscription(WrenchStamped, interface.AXIAL_LOAD, self._on_axial_load,
+                                     qos),
+            self.create_subscription(JointState, interface.NUT_STATE, self._on_nut_state, qos))
         # The inputs are taken by our own thread, not by the executor: rclpy's executor
         # spends ~0.3-0.6 ms of Python per message (rebuilding its wait set, tasks,
         # callback groups; measured with py-spy at 1 kHz, bench/bench_node.py), more than
@@ -274,24 +273,16 @@ class FrictionNode(Node):
         import and validate every field) cost ~60 us per input (profiled).
         """
         msg, ff = out
-        msg.header.stamp = stamp
-        msg.nut_angle_rad = pred.nut_angle_rad
-        msg.nut_velocity_rad_s = pred.nut_velocity_rad_s
-        msg.axial_load_n = pred.axial_load_n
-        msg.torque_total_nm = pred.torque_total_nm
-        msg.torque_b2g_nm = pred.torque_b2g_nm
-        msg.torque_b2b_nm = pred.torque_b2b_nm
-        msg.torque_empirical_nm = pred.torque_empirical_nm
-        msg.converged = pred.converged
-        msg.model_age_s = pred.model_age_s
-        msg.n_groups = len(pred.groups)
         ff.data[0] = pred.feedforward_nm
         age_ns = time.time_ns() - recv_ns
         if age_ns > self._max_age_ns:
             with self._lock:
                 self._shed += 1
             return False
-        msg.model_latency_s = 1e-9 * age_ns
+        msg.header.stamp = stamp
+        for name, value in zip(interface.PREDICTION_FIELDS,
+                               interface.prediction_values(pred, 1e-9 * age_ns)):
+            setattr(msg, name, value)
         self._pub_pred.publish(msg)
         self._pub_ff.publish(ff)
         with self._lock:

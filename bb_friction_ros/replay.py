@@ -21,6 +21,7 @@ import time
 
 import numpy as np
 
+from bb_friction_ros import interface
 from bb_friction_ros.bags import (BagError, BagInput, BagWriter, friction_typestore,
                                   MeasuredAligner, stamp_ns, Topics)
 from bb_friction_ros.config import bundled_config
@@ -30,10 +31,8 @@ from bb_friction_ros.runner import build_runner, InputAssembler, InputError
 CSV_COLUMNS = ["t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n", "torque_pred_nm",
                "torque_b2b_nm"]
 # Output topics and types, as friction_node publishes them (node.py).
-PREDICTION_TOPIC = ("/friction/prediction", "bb_friction_msgs/msg/FrictionPrediction")
-GROUPS_TOPIC = ("/friction/contact_groups", "bb_friction_msgs/msg/ContactGroupStatus")
-FEEDFORWARD_TOPIC = ("/friction/feedforward", "std_msgs/msg/Float64MultiArray")
-OUTPUT_TOPICS = (PREDICTION_TOPIC, GROUPS_TOPIC, FEEDFORWARD_TOPIC)
+PREDICTION_TOPIC, GROUPS_TOPIC, FEEDFORWARD_TOPIC = OUTPUT_TOPICS = tuple(
+    (interface.absolute(t), interface.TYPES[t]) for t in interface.REPLAYED_OUTPUTS)
 
 
 class NothingAccepted(BagError):
@@ -165,9 +164,9 @@ class _Series:
 # CDR (little endian) of the two messages written per prediction, packed directly.
 # rosbags builds a message object and walks its type per message: ~70 us of the ~110 us per
 # sample that the output bag cost (profiled, issue 11).  The layouts are fixed (an empty
-# frame_id, no sequences but one 1-element array); test_replay_bag checks every byte against
-# rosbags' own serialisation.  Offsets count from the payload after the 4-byte encapsulation
-# header; doubles align to 8.
+# frame_id, no sequences but one 1-element array); test/test_replay.py checks every
+# byte against rosbags' own serialisation.  Offsets count from the payload after the 4-byte
+# encapsulation header; doubles align to 8.
 _CDR_LE = b"\x00\x01\x00\x00"
 # FrictionPrediction: header (sec, nanosec, frame_id "" = length 1 + NUL, pad to 16), seven
 # float64, converged (bool, pad to 80), model_latency_s, model_age_s, n_groups.
@@ -178,11 +177,8 @@ _FEEDFORWARD_CDR = struct.Struct("<4sIII4xd")
 
 def prediction_cdr(pred, sec, nanosec, latency_s):
     """Return the CDR of friction_node's FrictionPrediction for ``pred`` (see node.py)."""
-    return _PREDICTION_CDR.pack(
-        _CDR_LE, sec, nanosec, 1, b"\x00", pred.nut_angle_rad, pred.nut_velocity_rad_s,
-        pred.axial_load_n, pred.torque_total_nm, pred.torque_b2g_nm, pred.torque_b2b_nm,
-        pred.torque_empirical_nm, bool(pred.converged), latency_s, pred.model_age_s,
-        len(pred.groups))
+    return _PREDICTION_CDR.pack(_CDR_LE, sec, nanosec, 1, b"\x00",
+                                *interface.prediction_values(pred, latency_s))
 
 
 def feedforward_cdr(value_nm):

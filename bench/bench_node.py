@@ -24,6 +24,9 @@ import time
 
 import numpy as np
 
+from bb_friction_ros import interface
+from bb_friction_ros.interface import local_domain_id
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 
 
@@ -52,8 +55,9 @@ def drive(rate_hz, duration_s, pid, context, warmup_s=1.0):
     from sensor_msgs.msg import JointState
 
     node = Node(f"bench_client_{pid}", context=context)
-    pub_state = node.create_publisher(JointState, "nut_state", qos_profile_sensor_data)
-    pub_load = node.create_publisher(WrenchStamped, "axial_load", qos_profile_sensor_data)
+    pub_state = node.create_publisher(JointState, interface.NUT_STATE, qos_profile_sensor_data)
+    pub_load = node.create_publisher(WrenchStamped, interface.AXIAL_LOAD,
+                                     qos_profile_sensor_data)
     sent, latency, diags, profiles = {}, [], [], []
     lock = threading.Lock()
     measuring = [False]
@@ -75,15 +79,16 @@ def drive(rate_hz, duration_s, pid, context, warmup_s=1.0):
         if measuring[0]:
             profiles.append((time.perf_counter(), len(msg.nut_angle_rad), msg.converged))
 
-    reliable = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
-    node.create_subscription(FeedforwardProfile, "friction/feedforward_profile", on_profile,
-                             reliable)
-    node.create_subscription(DiagnosticArray, "/diagnostics", on_diag, 10)
+    reliable = QoSProfile(depth=interface.COLLECTOR_QOS_DEPTH,
+                          reliability=ReliabilityPolicy.RELIABLE)
+    node.create_subscription(FeedforwardProfile, interface.PROFILE, on_profile, reliable)
+    node.create_subscription(DiagnosticArray, interface.DIAGNOSTICS, on_diag,
+                             interface.OUTPUT_QOS_DEPTH)
     # The predictions are taken by a polling thread straight from a subscription of a node
     # no executor spins: the rclpy executor costs ~0.3 ms of Python per message, and at
     # 1-2 kHz this client would otherwise be the bottleneck it is meant to measure through.
     taker = Node(f"bench_taker_{pid}", context=context)
-    sub_pred = taker.create_subscription(FrictionPrediction, "friction/prediction",
+    sub_pred = taker.create_subscription(FrictionPrediction, interface.PREDICTION,
                                          on_pred, reliable)
     stop = [False]
 
@@ -196,7 +201,7 @@ def main():
     args = ap.parse_args()
     sys.setswitchinterval(2.5e-4)     # the client is two Python threads too
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    os.environ.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 101))
+    os.environ.setdefault("ROS_DOMAIN_ID", str(local_domain_id()))
     import rclpy
     context = rclpy.Context()
     rclpy.init(context=context)

@@ -19,6 +19,8 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from bb_friction_msgs.msg import FrictionPrediction
 from sensor_msgs.msg import JointState
 
+from bb_friction_ros import interface
+
 
 class ThinNode(Node):
     """Answer each nut_state with a FrictionPrediction of the same stamp."""
@@ -28,8 +30,9 @@ class ThinNode(Node):
         super().__init__("thin_friction_node")
         qos = QoSProfile(depth=256, durability=DurabilityPolicy.VOLATILE,
                          reliability=ReliabilityPolicy.BEST_EFFORT)
-        self._pub = self.create_publisher(FrictionPrediction, "friction/prediction", 10)
-        self.create_subscription(JointState, "nut_state", self._on_state, qos)
+        self._pub = self.create_publisher(FrictionPrediction, interface.PREDICTION,
+                                          interface.OUTPUT_QOS_DEPTH)
+        self.create_subscription(JointState, interface.NUT_STATE, self._on_state, qos)
 
     def _on_state(self, msg):
         out = FrictionPrediction()

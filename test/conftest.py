@@ -17,7 +17,9 @@ import pathlib
 
 import pytest
 
-ROS_DOMAIN_ID = 1 + os.getpid() % 101
+from bb_friction_ros.interface import local_domain_id
+
+ROS_DOMAIN_ID = local_domain_id()
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ['ROS_DOMAIN_ID'] = str(ROS_DOMAIN_ID)
 

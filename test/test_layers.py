@@ -16,10 +16,10 @@ ROOT = pathlib.Path(__file__).resolve().parent.parent / PACKAGE
 
 # Lowest first; a module may import from its own layer or below.
 LAYERS = {
-    1: {"config", "contact", "paper", ""},            # "": the package's __init__
+    1: {"config", "contact", "paper", "compiled", ""},   # "": the package's __init__
     2: {"linear_bearing", "ball_screw", "empirical_terms", "model_file"},
-    3: {"runner", "bags", "node_parameters", "feedforward"},
-    4: {"replay", "node", "node_entry", "testing", "trajectories"},
+    3: {"runner", "live", "bags", "interface", "node_parameters", "feedforward"},
+    4: {"replay", "node", "node_entry", "harness", "pytest_plugin", "testing", "trajectories"},
     5: {"discrepancy", "sweep", "demo", "reproduce"},
     6: {"cli"},
 }

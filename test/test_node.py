@@ -1,7 +1,7 @@
 """
 The live friction_node, in-process under rclpy executors (no launch, no ros2 CLI).
 
-Driven through the public harness ``bb_friction_ros.testing`` (so it cannot rot).  Inputs are
+Driven through the public harness ``bb_friction_ros.harness`` (so it cannot rot).  Inputs are
 paced so that the model keeps up; then the node must give exactly the replay's predictions
 (same runner, same schedule).
 """
@@ -18,7 +18,7 @@ from bb_friction_ros.node import FrictionNode, main
 from bb_friction_ros.node_parameters import NodeParameters
 from bb_friction_ros.replay import run_events
 from bb_friction_ros.runner import build_runner, InputAssembler
-from bb_friction_ros.testing import console_script, play_through_node
+from bb_friction_ros.harness import console_script, play_through_node
 from invariants import check_prediction
 from recordings import short_recording
 
@@ -186,7 +186,7 @@ def test_console_script_with_bundled_params_file(ros_context, repo_root):
 
 def test_harness_publishes_inputs_and_collects_outputs(tmp_path):
     """The public harness: a params file, publish helpers, every collector, its own domain."""
-    from bb_friction_ros.testing import FrictionNodeHarness
+    from bb_friction_ros.harness import FrictionNodeHarness
     params = tmp_path / "params.yaml"
     params.write_text("friction_node:\n  ros__parameters:\n    nut_joint: screw_nut\n"
                       "    diagnostics_rate_hz: 20.0\n")
@@ -219,7 +219,7 @@ def test_harness_publishes_inputs_and_collects_outputs(tmp_path):
 
 def test_harness_follows_remapped_inputs():
     """The node's inputs are ordinary names: remapping moves them (a namespaced robot)."""
-    from bb_friction_ros.testing import FrictionNodeHarness
+    from bb_friction_ros.harness import FrictionNodeHarness
     remap = ["-r", "nut_state:=/robot/nut_state", "-r", "axial_load:=/robot/axial_load"]
     with FrictionNodeHarness(ros_args=remap,
                              input_topics=("/robot/nut_state", "/robot/axial_load")) as h:

@@ -23,7 +23,7 @@ from bb_friction_ros.node import FrictionNode
 from bb_friction_ros.config import bundled_config
 from bb_friction_ros.replay import run_events
 from bb_friction_ros.runner import build_runner, InputAssembler
-from bb_friction_ros.testing import console_script, play_through_node
+from bb_friction_ros.harness import console_script, play_through_node
 from test_feedforward import ScriptedScrew
 
 

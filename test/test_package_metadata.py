@@ -104,10 +104,17 @@ def test_console_scripts_exist(setup_kwargs):
         assert callable(getattr(importlib.import_module(module), function)), name
 
 
-def imported_top_level_modules(directory):
+# Modules loaded only by pytest (the pytest11 plugin and its old name): their imports are
+# test dependencies, not runtime ones.
+TEST_TIME_MODULES = {'pytest_plugin.py', 'testing.py'}
+
+
+def imported_top_level_modules(directory, skip=()):
     """Return {top-level module: first file importing it} over all .py files under directory."""
     found = {}
     for path in sorted(directory.rglob('*.py')):
+        if path.relative_to(directory).as_posix() in skip:
+            continue
         for node in ast.walk(ast.parse(path.read_text(), str(path))):
             if isinstance(node, ast.Import):
                 names = [alias.name for alias in node.names]
@@ -127,7 +134,8 @@ def test_package_xml_declares_runtime_deps(package_xml, setup_kwargs):
         assert target.split('.')[0] == PACKAGE
     declared = depends(package_xml, 'exec_depend')
     problems = []
-    for module, where in sorted(imported_top_level_modules(ROOT / PACKAGE).items()):
+    for module, where in sorted(imported_top_level_modules(ROOT / PACKAGE,
+                                                           TEST_TIME_MODULES).items()):
         if module == PACKAGE or module in sys.stdlib_module_names:
             continue
         key = ROSDEP_KEYS.get(module)
@@ -163,3 +171,24 @@ def test_interface_package(package_xml):
     cmake = (ROOT / 'msg_defs' / 'bb_friction_msgs' / 'CMakeLists.txt').read_text()
     for msg in (ROOT / 'msg_defs' / 'bb_friction_msgs' / 'msg').glob('*.msg'):
         assert f'"msg/{msg.name}"' in cmake
+
+
+def test_pytest_is_a_test_dependency_only(package_xml, setup_kwargs):
+    """pytest is no runtime dependency: the harness, the demo and the CLI run without it."""
+    import subprocess
+    assert 'python3-pytest' not in depends(package_xml, 'exec_depend')
+    assert 'python3-pytest' in depends(package_xml, 'test_depend')
+    plugins = setup_kwargs['entry_points']['pytest11']
+    assert plugins == ['bb_friction_ros = bb_friction_ros.pytest_plugin']
+    # pytest made unimportable, as on a robot without it
+    code = ("import sys; sys.modules['pytest'] = None\n"
+            "import bb_friction_ros.harness, bb_friction_ros.demo, bb_friction_ros.cli, "
+            "bb_friction_ros.node\n"
+            "from bb_friction_ros.cli import main; main(['demo', '--help'])\n")
+    run = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                         timeout=120)
+    assert run.returncode == 0 and 'usage' in run.stdout, run.stderr
+    check = subprocess.run([sys.executable, '-c', code.replace('bb_friction_ros.node',
+                            'bb_friction_ros.pytest_plugin')], capture_output=True,
+                           text=True, timeout=120)
+    assert check.returncode != 0 and 'pytest' in check.stderr   # the check can fail

@@ -39,22 +39,9 @@ import numpy as np
 
 from bb_friction_ros.ball_screw.single_ball import LENGTH_SCALE_M
 
-try:
-    import numba
-    HAVE_NUMBA = True
-
-    def _jit(fn):
-        # fastmath limited to FMA contraction, reciprocals and reassociation (20 % faster
-        # evaluation, agrees with the numpy path to ~1e-14); never nnan/ninf: the line
-        # search tests for non-finite residuals.  nogil: the live node's executor thread
-        # takes and answers inputs while the model thread is inside a solve.
-        return numba.njit(cache=True, error_model="numpy", nogil=True,
-                          fastmath={"contract", "arcp", "reassoc"})(fn)
-except ImportError:        # pragma: no cover - numba is an exec_depend
-    HAVE_NUMBA = False
-
-    def _jit(fn):
-        return fn
+from bb_friction_ros.compiled import HAVE_NUMBA  # noqa: F401  (re-exported: solver, tests)
+from bb_friction_ros.compiled import back_substitute_block, gauss_solve
+from bb_friction_ros.compiled import jit as _jit
 
 _TINY = 1e-300
 _TWO_PI = 2.0 * math.pi
@@ -333,72 +320,6 @@ def b2b_terms(x, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, want_jac, g_r, g_f, 
 
 
 @_jit
-def _gauss(d, w, n, j0, d0, w0):
-    """
-    Solve d[:n, :n] @ X = w[:n, j0:] in place (w <- X) with partial pivoting.
-
-    A singular block is solved again with a Levenberg-Marquardt diagonal shift, as the
-    numpy path does.  d0, w0: work arrays for the copies that the retry needs.
-    """
-    m = w.shape[1]
-    for r in range(n):
-        for j in range(n):
-            d0[r, j] = d[r, j]
-        for j in range(j0, m):
-            w0[r, j] = w[r, j]
-    for attempt in range(2):
-        singular = False
-        for col in range(n):
-            piv = col
-            big = abs(d[col, col])
-            for r in range(col + 1, n):
-                if abs(d[r, col]) > big:
-                    big = abs(d[r, col])
-                    piv = r
-            if big == 0.0 or not math.isfinite(big):
-                singular = True
-                break
-            if piv != col:
-                for j in range(n):
-                    tmp = d[col, j]
-                    d[col, j] = d[piv, j]
-                    d[piv, j] = tmp
-                for j in range(j0, m):
-                    tmp = w[col, j]
-                    w[col, j] = w[piv, j]
-                    w[piv, j] = tmp
-            inv = 1.0 / d[col, col]
-            for r in range(col + 1, n):
-                fac = d[r, col] * inv
-                if fac != 0.0:
-                    for j in range(col + 1, n):
-                        d[r, j] -= fac * d[col, j]
-                    for j in range(j0, m):
-                        w[r, j] -= fac * w[col, j]
-        if not singular:
-            for col in range(n - 1, -1, -1):
-                inv = 1.0 / d[col, col]
-                for j in range(j0, m):
-                    acc = w[col, j]
-                    for k in range(col + 1, n):
-                        acc -= d[col, k] * w[k, j]
-                    w[col, j] = acc * inv
-            return True
-        big = 1e-300
-        for r in range(n):
-            for j in range(n):
-                big = max(big, abs(d0[r, j]))
-        shift = math.sqrt(2.220446049250313e-16) * big
-        for r in range(n):
-            for j in range(n):
-                d[r, j] = d0[r, j]
-            d[r, r] += shift
-            for j in range(j0, m):
-                w[r, j] = w0[r, j]
-    return False
-
-
-@_jit
 def chains(n, rear, front):
     """Order balls chain by chain, rear first: (rear_of, front_of, seq, starts, ok)."""
     rear_of = np.full(n, -1, dtype=np.int64)
@@ -498,7 +419,7 @@ def newton_direction(seq, starts, rear_of, front_of, jac, dax, res, axial, cons,
                             d[r, j] -= acc
                         else:
                             w[r, j] -= acc
-            _gauss(d, w, nd, 0 if c >= 0 else 7, d0, w0)
+            gauss_solve(d, w, nd, 0 if c >= 0 else 7, d0, w0)
             if c >= 0:
                 for r in range(7):
                     for j in range(9):
@@ -510,15 +431,7 @@ def newton_direction(seq, starts, rear_of, front_of, jac, dax, res, axial, cons,
                 xs[k, 6, 7] = 0.0
                 xs[k, 6, 8] = 0.0
         for k in range(k1 - 1, k0 - 1, -1):
-            for r in range(7):
-                yv = xs[k, r, 7]
-                wv = xs[k, r, 8]
-                if k < k1 - 1:
-                    for m in range(7):
-                        yv -= xs[k, r, m] * ys[k + 1, m, 0]
-                        wv -= xs[k, r, m] * ys[k + 1, m, 1]
-                ys[k, r, 0] = yv
-                ys[k, r, 1] = wv
+            back_substitute_block(xs, ys, k, k == k1 - 1)
             b = seq[k]
             for r in range(6):
                 acc_y += dax[b, r] * ys[k, r, 0]
@@ -991,20 +904,12 @@ def elastic_direction(order, behind, ahead, wrap, rear, jac, dax, res, tr, cp, c
                         d[8, j] -= acc
                     else:
                         w[8, j] -= acc
-        _gauss(d, w, 9, 0, d0, w0)
+        gauss_solve(d, w, 9, 0, d0, w0)
         for r in range(9):
             for j in range(11):
                 xs[k, r, j] = w[r, j]
     for k in range(n - 1, -1, -1):
-        for r in range(9):
-            yv = xs[k, r, 9]
-            zv = xs[k, r, 10]
-            if k < n - 1:
-                for m in range(9):
-                    yv -= xs[k, r, m] * ys[k + 1, m, 0]
-                    zv -= xs[k, r, m] * ys[k + 1, m, 1]
-            ys[k, r, 0] = yv
-            ys[k, r, 1] = zv
+        back_substitute_block(xs, ys, k, k == n - 1)
     dfw = 0.0
     if wrap >= 0:
         # Border row: equal orbit rates across the return tube (rear minus front).

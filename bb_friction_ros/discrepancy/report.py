@@ -73,9 +73,12 @@ def write_report(out, a, summary, plots=True, validation=None):
     s = summary["samples"]
     nm = summary.get("noise") or {}
     acc = summary.get("acceleration", {})
-    lines = [
-        "# Discrepancy report", "",
-        f"**Verdict: {summary['verdict']}.** {summary['reason']}.", ""]
+    lines = ["# Discrepancy report", ""]
+    # issue 19: where the workflow is worse than the rigid-body reference, say so first
+    lines += [f"**Warning:** {w}." for w in summary.get("warnings", [])]
+    if summary.get("warnings"):
+        lines.append("")
+    lines += [f"**Verdict: {summary['verdict']}.** {summary['reason']}.", ""]
     if summary.get("identified_from_data_only"):
         lines += ["**No model of this screw:** the prediction is zero, so every term below "
                   "was identified from the measured torque alone. It describes this drive "
@@ -89,13 +92,11 @@ def write_report(out, a, summary, plots=True, validation=None):
         f"differences, read where the estimate stops growing with the lag): "
         f"{_f(summary['noise_std_nm'])} N m (lag-1 estimate {_f(nm.get('std_lag1_nm'))} N m; "
         f"autocorrelation time {_f(nm.get('autocorrelation_time_samples'), 3)} samples)",
-        f"- acceleration: {acc.get('source', '?')}"
-        + (f"; cut-off {_f(acc['cutoff_hz'], 3)} Hz, segments split at gaps > "
-           f"{_f(acc['max_gap_s'], 3)} s; the live node's causal filter lags by "
-           f"{_f(acc['live_lag_s'] * 1e3, 3)} ms" if "cutoff_hz" in acc else ""),
+        "- acceleration: " + acceleration_sentence(acc),
         f"- held-out RMSE: before {_f(summary['rmse_before_nm'])} N m, after "
         f"{_f(summary['rmse_after_nm'])} N m",
     ]
+    lines += reference_lines(summary)
     if summary.get("reducible_removed_fraction") is not None:
         lines.append(f"- share of the reducible held-out RMSE (RMSE before - noise) removed: "
                      f"{summary['reducible_removed_fraction']:.0%}")
@@ -126,12 +127,16 @@ def write_report(out, a, summary, plots=True, validation=None):
     if validation is not None:
         v = summary["validation"]
         lines += ["", "## Validation on a second recording (no refit)", "",
-                  f"Input: `{v['input']}`, {v['n']} samples; the same terms and parameters; "
-                  "rows in `validation/prediction.csv`.", "",
+                  f"Input: `{v['input']}` (baseline {v.get('baseline', '?')}), {v['n']} "
+                  "samples; the written terms (refitted on all usable samples of the fit "
+                  "recording), unchanged; rows in `validation/prediction.csv`.", "",
                   "| | RMSE [N m] | relative error ‖meas − pred‖ / ‖meas‖ |", "|---|---|---|",
                   f"| model | {_f(v['rmse_before_nm'])} | {_f(v['relative_error_before'], 3)} |",
                   f"| model + terms | {_f(v['rmse_after_nm'])} | "
-                  f"{_f(v['relative_error_after'], 3)} |"]
+                  f"{_f(v['relative_error_after'], 3)} |",
+                  f"| rigid-body reference (least squares on the same samples) | "
+                  f"{_f(v.get('reference_rmse_nm'))} | "
+                  f"{_f(v.get('reference_relative_error'), 3)} |"]
     if plots:
         plot_all(out, a)
         figures = list(FIGURES)
@@ -140,6 +145,47 @@ def write_report(out, a, summary, plots=True, validation=None):
             figures.append(VALIDATION_FIGURE)
         lines += ["", "## Figures", ""] + [f"![{f}]({f})" for f in figures]
     (out / "report.md").write_text("\n".join(lines) + "\n")
+
+
+def acceleration_sentence(acc):
+    """Return the report's sentence on the acceleration cut-off: value, how chosen, lag."""
+    text = acc.get("source", "?")
+    if "cutoff_hz" not in acc:
+        return text
+    text += (f"; cut-off {_f(acc['cutoff_hz'], 3)} Hz, chosen by {acc.get('chosen_by', '?')}")
+    cands = acc.get("candidates") or []
+    if cands:
+        text += (" over " + ", ".join(f"{_f(c['cutoff_hz'], 3)}" for c in cands) + " Hz "
+                 "(cross-validated RMSE " + ", ".join(_f(c["cv_rmse_nm"], 4) for c in cands)
+                 + " N m; without acceleration "
+                 f"{_f(acc.get('no_acceleration_cv_rmse_nm'), 4)} N m)")
+    if acc.get("inertia_identifiable") is False:
+        text += f". **Inertia cannot be identified here:** {acc.get('inertia_reason')}"
+    text += (f"; segments split at gaps > {_f(acc['max_gap_s'], 3)} s; the live node's and "
+             f"replay's causal filter at this cut-off lags by {_f(acc['live_lag_s'] * 1e3, 3)}"
+             " ms")
+    return text
+
+
+def reference_lines(summary):
+    """Return the report lines of the rigid-body reference and of which fit gives what."""
+    h = summary.get("heldout")
+    if not h:
+        return []
+    refit = summary.get("refit") or {}
+    out = ["", "| held-out part | RMSE [N m] | relative error |", "|---|---|---|",
+           f"| model | {_f(h['rmse_before_nm'])} | {_f(h['relative_error_before'], 3)} |",
+           f"| model + terms (fitted on the fit part) | {_f(h['rmse_after_nm'])} | "
+           f"{_f(h['relative_error_after'], 3)} |",
+           f"| rigid-body reference (least squares on the fit part, same alpha) | "
+           f"{_f(h['reference_rmse_nm'])} | {_f(h['reference_relative_error'], 3)} |", ""]
+    if refit.get("refitted"):
+        out.append(f"The held-out figures come from the terms fitted on the fit part; "
+                   f"`augmented.yaml`, the validation and the node use the same terms "
+                   f"refitted on all {refit['samples']} usable samples.")
+    elif refit:
+        out.append(f"The written terms are the fit part's: {refit.get('reason')}.")
+    return out
 
 
 def write_insufficient_report(out, summary):
@@ -259,11 +305,17 @@ def plot_validation(out, v):
                  label="residual before")
     axes[1].plot(t, rec.torque_meas_nm - rec.torque_pred_nm - v.added_nm, lw=0.6, color="C0",
                  label="residual after")
+    s = v.summary
+    if v.reference_nm is not None:
+        axes[0].plot(t, rec.torque_pred_nm + v.reference_nm, lw=0.8, ls="--", color="C3",
+                     label="model + rigid-body reference")
+        axes[1].plot(t, rec.torque_meas_nm - rec.torque_pred_nm - v.reference_nm, lw=0.6,
+                     color="C3", alpha=0.7, label="residual, reference")
     axes[1].set_ylabel("residual [N m]")
     axes[1].set_xlabel("time [s]")
-    s = v.summary
-    axes[0].set_title(f"validation: RMSE {s['rmse_before_nm']:.4g} -> {s['rmse_after_nm']:.4g} "
-                      "N m")
+    axes[0].set_title(f"validation: relative error {s['relative_error_after']:.3g} (terms) vs "
+                      f"{s['reference_relative_error']:.3g} (rigid-body reference); RMSE "
+                      f"{s['rmse_before_nm']:.4g} -> {s['rmse_after_nm']:.4g} N m")
     for ax in axes:
         ax.grid(True)
         ax.legend(fontsize=8, loc="upper right")

@@ -518,3 +518,34 @@ def to_termset(f):
             values[cand.kind.nonlinear] = float(nl)
         terms.append(make_term(cand.name, values))
     return TermSet(terms)
+
+
+# Rows per chunk of the refit's normal equations: the design of a 10-minute 1 kHz recording
+# is never in memory at once (as in Gram).
+REFIT_CHUNK_ROWS = 16384
+
+
+def refit_all(f, x, r):
+    """
+    Refit the amplitudes of the chosen model ``f`` on all samples ``x``, ``r`` (issue 19).
+
+    The selection and the held-out score need the split; the chosen terms, with their
+    nonlinear values (Stribeck velocity, thermal tau) as selected, are then fitted by least
+    squares on every usable sample, which is what ``augmented.yaml``, ``--validate`` and the
+    node get.  The normal equations are accumulated over row chunks.  Return the Fit
+    (``physical`` says whether every amplitude kept its sign and range).
+    """
+    members = tuple(f.members)
+    n = r.size
+    k = sum(len(c.linear) for c, _ in members)
+    g, b, rr = np.zeros((k, k)), np.zeros(k), 0.0
+    for lo in range(0, n, REFIT_CHUNK_ROWS):
+        sl = slice(lo, min(lo + REFIT_CHUNK_ROWS, n))
+        a = _design(members, _rows(x, sl))
+        g += a.T @ a
+        b += a.T @ r[sl]
+        rr += float(r[sl] @ r[sl])
+    coef = _solve(g, b) if k else np.zeros(0)
+    rss = max(rr - 2.0 * float(coef @ b) + float(coef @ g @ coef), 0.0)
+    return Fit(members, coef, rss, _bic(rss, n, sum(c.n_params for c, _ in members)),
+               _is_physical(members, coef))

@@ -66,12 +66,19 @@ class DiscrepancySettings:
         lo=0.0)
     # --- acceleration ---------------------------------------------------------------------
     accel_cutoff_hz: float = field(
-        10.0, "Hz", "cut-off of the 2nd-order Butterworth low-pass of the nut velocity whose "
-        "derivative is the acceleration (the inertia term); the causal version lags by "
-        "sqrt(2)/(2 pi fc), 22 ms at 10 Hz", lo=0.0, lo_open=True)
+        0.0, "Hz", "cut-off of the 2nd-order Butterworth low-pass of the nut velocity whose "
+        "derivative is the acceleration (the inertia term); 0 chooses it from the data "
+        "(blocked cross-validation, discrepancy/bandwidth.py), a positive value overrides "
+        "the choice; the causal version lags by sqrt(2)/(2 pi fc), 22 ms at 10 Hz", lo=0.0)
     accel_max_cutoff_fraction: float = field(
         0.2, "1", "the cut-off is at most this fraction of the sample rate (a slow recorder: "
-        "the filter must stay well below Nyquist)", lo=0.01, hi=0.45)
+        "the filter must stay well below Nyquist); the highest candidate of the choice",
+        lo=0.01, hi=0.45)
+    accel_cutoff_grid_points: int = field(
+        8, "1", "candidate cut-offs of the cross-validated choice, log-spaced", lo=2, hi=50)
+    accel_cutoff_grid_span: float = field(
+        32.0, "1", "ratio of the highest to the lowest candidate cut-off (at 1 kHz: 200 Hz "
+        "down to 6.25 Hz; at 50 Hz: 10 Hz down to 0.31 Hz)", lo=1.5, hi=1e4)
     segment_gap_factor: float = field(
         5.0, "1", "a step longer than this many median sample periods starts a new "
         "continuous segment: the acceleration filter never runs across it", lo=1.5)

@@ -32,9 +32,13 @@ import numpy as np
 
 from bb_friction_ros.config import BBFrictionError
 from bb_friction_ros.discrepancy import regimes
+from bb_friction_ros.discrepancy.bandwidth import (acceleration_filter_of, choose_cutoff,
+                                                   with_acceleration)
 from bb_friction_ros.discrepancy.data import inputs_of
-from bb_friction_ros.discrepancy.selection import ambiguities, candidates, select
-from bb_friction_ros.empirical_terms import filter_lag_s, TermSet, zero_phase_acceleration
+from bb_friction_ros.discrepancy.reference import RigidBody
+from bb_friction_ros.discrepancy.selection import (ambiguities, candidates, refit_all, select,
+                                                   to_termset)
+from bb_friction_ros.empirical_terms import filter_lag_s, TermSet
 from bb_friction_ros.model_file import physics_of, read_model_file, write_model_file
 
 
@@ -45,57 +49,6 @@ class InsufficientData(BBFrictionError):
         """Keep the list of what is missing."""
         super().__init__("; ".join(missing))
         self.missing = list(missing)
-
-
-def acceleration_filter_of(rec, settings):
-    """
-    Return the acceleration filter's settings for a recording: {accel_cutoff_hz, max_gap_s}.
-
-    The cut-off is ``accel_cutoff_hz``, at most ``accel_max_cutoff_fraction`` of the sample
-    rate (1 / median step); a step longer than ``segment_gap_factor`` median steps is a gap.
-    """
-    dt = np.diff(rec.t_s)
-    dt = dt[dt > 0]
-    if dt.size == 0:
-        return None
-    step = float(np.median(dt))
-    return {"accel_cutoff_hz": min(settings.accel_cutoff_hz,
-                                   settings.accel_max_cutoff_fraction / step),
-            "max_gap_s": settings.segment_gap_factor * step}
-
-
-def with_acceleration(rec, settings, spec=None):
-    """
-    Return ``rec`` with its nut acceleration: the CSV's own column, or derived.
-
-    Derived: the zero-phase ``AccelerationFilter`` on the nut velocity per continuous
-    segment.  Runs (the stamps restart) are filtered on their own, each with the gap rule and
-    the cut-off limit of its own sample rate (a recording of several recorder files may mix
-    rates); ``spec`` (filter settings) overrides the cut-off.  Samples of segments too short
-    to derive it are NaN.  Return (recording, spec of the whole recording).
-    """
-    whole = acceleration_filter_of(rec, settings)
-    if spec is not None and whole is not None:
-        whole["accel_cutoff_hz"] = spec["accel_cutoff_hz"]
-    if rec.nut_accel_rad_s2 is not None or whole is None:
-        return rec, whole
-    accel = np.full(len(rec), np.nan)
-    starts = np.concatenate(([0], np.flatnonzero(np.diff(rec.t_s) < 0.0) + 1, [len(rec)]))
-    cutoffs = []
-    for lo, hi in zip(starts[:-1], starts[1:]):
-        run = rec.take(slice(lo, hi))
-        own = acceleration_filter_of(run, settings)
-        if own is None:
-            continue
-        fc = min(whole["accel_cutoff_hz"], own["accel_cutoff_hz"])
-        cutoffs.append(fc)
-        accel[lo:hi] = zero_phase_acceleration(run.t_s, run.nut_velocity_rad_s, fc,
-                                               own["max_gap_s"],
-                                               settings.accel_min_segment_samples)
-    info = dict(rec.info)
-    if cutoffs and (min(cutoffs) < whole["accel_cutoff_hz"]):
-        info["acceleration_run_cutoff_hz"] = [min(cutoffs), max(cutoffs)]
-    return dataclasses.replace(rec, nut_accel_rad_s2=accel, info=info), whole
 
 
 def adequacy(x_fit, n_usable, settings):
@@ -215,6 +168,13 @@ class Analysis:
     accel_filter: dict = None  # the acceleration filter's settings (None: CSV column)
     ambiguities: list = dataclasses.field(default_factory=list)
     rejected_terms: TermSet = None     # selected, but no better on the held-out part
+    # issue 19: the terms as fitted on the fit part (the held-out figures); ``terms`` is
+    # their refit on all usable samples (augmented.yaml, --validate, the node)
+    terms_fit_part: TermSet = None
+    refit: dict = None                 # summary.json["refit"]
+    accel_choice: object = None        # bandwidth.CutoffChoice (None: the CSV's column)
+    reference: object = None           # reference.RigidBody fitted on all usable samples
+    heldout: dict = None               # summary.json["heldout"]: workflow and reference
 
     @property
     def verdict(self):
@@ -241,8 +201,10 @@ def usable(rec):
 
 
 def analyse(rec, settings):
-    """Run steps 1-3 and 5 on a Recording; raise InsufficientData when it cannot tell."""
-    rec, spec = with_acceleration(rec, settings)
+    """Run steps 0-3 and 5 on a Recording; raise InsufficientData when it cannot tell."""
+    choice = choose_cutoff(rec, settings, usable)
+    rec, spec = with_acceleration(rec, settings, choice and {"accel_cutoff_hz":
+                                                             choice.cutoff_hz})
     ok, dropped = usable(rec)
     if not ok.any():
         if dropped["no_measurement"] == len(rec):
@@ -264,6 +226,8 @@ def analyse(rec, settings):
     missing, untested = adequacy(x_fit, n, settings)
     if missing:
         raise InsufficientData(missing)
+    if choice is not None and not choice.inertia_identifiable:
+        untested.setdefault("inertia", choice.reason)
     if "stribeck" not in untested:
         grid = [c for c in candidates(x_fit, settings) if c.name == "stribeck"][0].grid
         if not grid[-1] > grid[0]:
@@ -290,13 +254,61 @@ def analyse(rec, settings):
     bins = regimes.make_bins(x, settings)
     x_hold = inputs_of(rec, hold)
     tau = noise.tau
+    written, refit = refit_terms(ctx, terms, x, r)
+    reference, heldout = reference_rows(rec, x, r, fit_mask, after)
     return Analysis(
-        rec, fit_mask, r, added, noise.std_nm, terms, trace, untested, bins,
+        rec, fit_mask, r, added, noise.std_nm, written, trace, untested, bins,
         regimes.regime_table(bins, x, r, noise.std_nm, settings, tau),
         regimes.regime_table(bins, x, after, noise.std_nm, settings, tau),
         regimes.regime_table(bins, x_hold, r[hold], noise.std_nm, settings, tau),
         regimes.regime_table(bins, x_hold, after[hold], noise.std_nm, settings, tau),
-        _rms(r[hold]), _rms(after[hold]), dropped, noise, spec, ambiguous, rejected)
+        _rms(r[hold]), _rms(after[hold]), dropped, noise, spec, ambiguous, rejected,
+        terms, refit, choice, reference, heldout)
+
+
+def refit_terms(ctx, terms, x, r):
+    """
+    Return (the terms to write, summary.json["refit"]): the chosen terms refitted on all.
+
+    Issue 19: the model written was fitted on the first 70 % only, and on a measured robot
+    axis it validated worse than a least-squares fit of the same terms.  The refit keeps the
+    selected nonlinear values; if an amplitude leaves its physical sign or range on all
+    samples, the fit part's terms are kept and the summary says so.
+    """
+    if not len(terms):
+        return terms, {"samples": 0, "refitted": False, "reason": "no term selected"}
+    f = refit_all(ctx.best[ctx.chosen], x, r)
+    if not f.physical:
+        return terms, {"samples": int(r.size), "refitted": False,
+                       "reason": "on all samples an amplitude leaves its physical sign or "
+                                 "range; the fit part's terms are written"}
+    return to_termset(f), {"samples": int(r.size), "refitted": True,
+                           "reason": "the chosen terms refitted on all usable samples of "
+                                     "the fit recording (their nonlinear values as "
+                                     "selected)"}
+
+
+def reference_rows(rec, x, r, fit_mask, after):
+    """
+    Return (RigidBody on all usable samples, summary.json["heldout"]).
+
+    The held-out row: the workflow's terms and the rigid-body reference, both fitted on the
+    fit part, on the held-out part (issue 19: the same reference row as the validation).
+    """
+    hold = ~fit_mask
+    meas = rec.torque_meas_nm[hold]
+    norm = float(np.linalg.norm(meas))
+
+    def rel(e):
+        return float(np.linalg.norm(e)) / norm if norm > 0 else None
+    ref_fit = RigidBody.fit(inputs_of(rec, fit_mask), r[fit_mask])
+    e_ref = r[hold] - ref_fit.torque_nm(inputs_of(rec, hold))
+    heldout = {"n": int(hold.sum()), "fitted_on": "the fit part (first samples)",
+               "rmse_before_nm": _rms(r[hold]), "rmse_after_nm": _rms(after[hold]),
+               "relative_error_before": rel(r[hold]), "relative_error_after": rel(after[hold]),
+               "reference_rmse_nm": _rms(e_ref), "reference_relative_error": rel(e_ref),
+               "reference_params": ref_fit.params()}
+    return RigidBody.fit(x, r), heldout
 
 
 def _region(row):
@@ -351,6 +363,32 @@ def summary_of(a, info=None):
     }
     if a.rejected_terms is not None:
         out["rejected_effects"] = a.rejected_terms.effects()
+    out.update(reference_summary(a))
+    return out
+
+
+def reference_summary(a):
+    """
+    Return the summary.json keys of issue 19: which fit gives which figure, and the reference.
+
+    ``effects`` are the written terms (refitted on all usable samples); ``effects_fit_part``
+    the same terms as fitted on the fit part, which give the held-out figures; ``heldout``
+    holds the workflow's and the rigid-body reference's held-out errors; ``warnings`` says
+    plainly where the workflow is worse than the reference.
+    """
+    from bb_friction_ros.discrepancy.reference import FORMULA
+    out = {"effects_fit_part": a.terms_fit_part.effects() if a.terms_fit_part else [],
+           "refit": a.refit, "heldout": a.heldout,
+           "reference": {"model": FORMULA,
+                         "params_all_samples": a.reference.params() if a.reference else None},
+           "warnings": []}
+    h = a.heldout
+    if h and h["reference_relative_error"] is not None \
+            and h["relative_error_after"] > h["reference_relative_error"]:
+        out["warnings"].append(
+            f"on the held-out part the workflow is worse than the rigid-body reference "
+            f"({FORMULA}): relative error {h['relative_error_after']:.4g} against "
+            f"{h['reference_relative_error']:.4g}")
     return out
 
 
@@ -361,10 +399,16 @@ def _xargs(a):
 
 def _acceleration_info(a, info):
     out = {"source": info.get("acceleration_source", "derived (zero-phase filter)")}
+    if a.accel_choice is not None:
+        out.update(a.accel_choice.as_dict())
+    else:
+        out["chosen_by"] = out["source"]
     if a.accel_filter:
         fc = a.accel_filter["accel_cutoff_hz"]
         out.update(cutoff_hz=fc, max_gap_s=a.accel_filter["max_gap_s"],
                    live_lag_s=filter_lag_s(fc))
+    if "acceleration_run_cutoff_hz" in info:
+        out["run_cutoff_hz"] = info["acceleration_run_cutoff_hz"]
     return out
 
 
@@ -412,6 +456,7 @@ class Validation:
     recording: object          # data.Recording of the usable samples (with acceleration)
     added_nm: np.ndarray       # the selected terms' torque on it
     summary: dict              # summary.json["validation"]
+    reference_nm: np.ndarray = None    # the rigid-body reference's torque on it
 
 
 def validate(a, rec, settings):
@@ -439,14 +484,19 @@ def validate(a, rec, settings):
     def rel(e):
         return float(np.linalg.norm(e)) / norm if norm > 0 else None
 
+    ref = a.reference.torque_nm(x) if a.reference is not None else np.zeros(len(rec))
     summary = {"n": len(rec), "rmse_before_nm": _rms(meas - pred),
                "rmse_after_nm": _rms(meas - pred - added),
                "relative_error_before": rel(meas - pred),
                "relative_error_after": rel(meas - pred - added),
+               "reference_rmse_nm": _rms(meas - pred - ref),
+               "reference_relative_error": rel(meas - pred - ref),
+               "reference_fitted_on": "all usable samples of the fit recording, as the "
+                                      "written terms",
                "input": rec.info.get("input"), "baseline": baseline_of(rec),
                "dropped": dropped,
                "terms": list(a.terms.names)}
-    return Validation(rec, added, summary)
+    return Validation(rec, added, summary, ref)
 
 
 def write_validation_csv(path, v):
@@ -532,6 +582,12 @@ def run_discrepancy(input_path, out, config=None, settings=None, replay_settings
     if v is not None:
         write_validation_csv(out / "validation" / "prediction.csv", v)
         summary["validation"] = v.summary
+        if v.summary["reference_relative_error"] is not None \
+                and v.summary["relative_error_after"] > v.summary["reference_relative_error"]:
+            summary["warnings"].insert(0, (
+                f"on the validation recording the workflow is WORSE than the rigid-body "
+                f"reference: relative error {v.summary['relative_error_after']:.4g} against "
+                f"{v.summary['reference_relative_error']:.4g}"))
     summary["settings"] = dataclasses.asdict(settings)
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     write_report(out, a, summary, plots=plots, validation=v)

@@ -18,20 +18,9 @@ import math
 
 import numpy as np
 
-try:
-    import numba
-    HAVE_NUMBA = True
-
-    def _jit(fn):
-        # Same restricted fastmath as the ball-screw kernel: no nnan/ninf (the line search
-        # tests for non-finite residuals).
-        return numba.njit(cache=True, error_model="numpy",
-                          fastmath={"contract", "arcp", "reassoc"})(fn)
-except ImportError:        # pragma: no cover - numba is an exec_depend
-    HAVE_NUMBA = False
-
-    def _jit(fn):
-        return fn
+from bb_friction_ros.compiled import HAVE_NUMBA  # noqa: F401  (re-exported: numerical, tests)
+from bb_friction_ros.compiled import gauss_solve
+from bb_friction_ros.compiled import jit as _jit
 
 _PI = math.pi
 
@@ -170,44 +159,6 @@ def group_residual(z, nx, ny, q, a, vg, v, r_b, mu, q_ref, values, slopes, step,
 
 
 @_jit
-def _dense_solve(a, b, out):
-    """Solve a @ out = b by Gaussian elimination with partial pivoting; False if singular."""
-    n = b.shape[0]
-    m = a.copy()
-    x = b.copy()
-    for col in range(n):
-        piv = col
-        big = abs(m[col, col])
-        for r in range(col + 1, n):
-            if abs(m[r, col]) > big:
-                big = abs(m[r, col])
-                piv = r
-        if big == 0.0 or not math.isfinite(big):
-            return False
-        if piv != col:
-            for c in range(n):
-                tmp = m[col, c]
-                m[col, c] = m[piv, c]
-                m[piv, c] = tmp
-            tmp = x[col]
-            x[col] = x[piv]
-            x[piv] = tmp
-        inv = 1.0 / m[col, col]
-        for r in range(col + 1, n):
-            fac = m[r, col] * inv
-            if fac != 0.0:
-                for c in range(col + 1, n):
-                    m[r, c] -= fac * m[col, c]
-                x[r] -= fac * x[col]
-    for col in range(n - 1, -1, -1):
-        acc = x[col]
-        for c in range(col + 1, n):
-            acc -= m[col, c] * out[c]
-        out[col] = acc / m[col, col]
-    return True
-
-
-@_jit
 def solve_group(z0, nx, ny, q, a, vg, v, r_b, mu, q_ref, values, slopes, step, tol,
                 max_iter):
     """
@@ -222,8 +173,9 @@ def solve_group(z0, nx, ny, q, a, vg, v, r_b, mu, q_ref, values, slopes, step, t
     jac = np.empty((m, m))
     res_n = np.empty(m)
     jac_n = np.empty((m, m))
-    step_v = np.empty(m)
-    rhs = np.empty(m)
+    rhs = np.empty((m, 1))
+    d0 = np.empty((m, m))
+    w0 = np.empty((m, 1))
     z_new = np.empty(m)
     norm = group_residual(z, nx, ny, q, a, vg, v, r_b, mu, q_ref, values, slopes, step, True,
                           res, jac)
@@ -231,20 +183,14 @@ def solve_group(z0, nx, ny, q, a, vg, v, r_b, mu, q_ref, values, slopes, step, t
     while norm > tol and it < max_iter:
         it += 1
         for r in range(m):
-            rhs[r] = -res[r]
-        if not _dense_solve(jac, rhs, step_v):
-            big = 1e-300
-            for r in range(m):
-                for c in range(m):
-                    big = max(big, abs(jac[r, c]))
-            for r in range(m):
-                jac[r, r] += math.sqrt(2.220446049250313e-16) * big
-            if not _dense_solve(jac, rhs, step_v):
-                break
+            rhs[r, 0] = -res[r]
+        # jac is overwritten: the line search's evaluation replaces it.
+        if not gauss_solve(jac, rhs, m, 0, d0, w0):
+            break
         lam = 1.0
         while True:
             for r in range(m):
-                z_new[r] = z[r] + lam * step_v[r]
+                z_new[r] = z[r] + lam * rhs[r, 0]
             norm_new = group_residual(z_new, nx, ny, q, a, vg, v, r_b, mu, q_ref, values,
                                       slopes, step, True, res_n, jac_n)
             if norm_new < (1.0 - 1e-4 * lam) * norm or lam < 1e-4:

@@ -10,8 +10,8 @@ itself is also tested on a 46-row excerpt kept in ``test/discrepancy/data``.
 Per drive: fit on half of the steady-state runs and one start-stop run, validate on the
 others with ``--validate`` (no refit).  Checked against the data themselves:
 - the augmented model's validation relative error is no worse than the rigid-body
-  least-squares reference (J alpha + c omega + T_c sign omega + T_0) fitted on the same
-  samples (driveNo2: within 2 %, see REFERENCE_SLACK);
+  least-squares reference (J alpha + c omega + T_c sign omega + T_0) that the same run fits
+  on the same samples with the same alpha (issue 19; recomputed here);
 - the drag named (seal_drag, the mean of both directions) is the mean of the measured
   steady-state torque magnitudes within 15 %;
 - the lifting/lowering difference is named (a direction asymmetry or an offset);
@@ -31,8 +31,10 @@ import pytest
 
 from bb_friction_ros.cli import main as cli_main
 from bb_friction_ros.discrepancy.data import load_recording
-from bb_friction_ros.discrepancy.reference import rigid_body_on
+from bb_friction_ros.discrepancy.bandwidth import with_acceleration
+from bb_friction_ros.discrepancy.reference import rigid_body_fit, rigid_body_relative_error
 from bb_friction_ros.discrepancy.settings import DiscrepancySettings
+from bb_friction_ros.discrepancy.workflow import usable
 
 TOOLS = Path(__file__).resolve().parents[2] / "tools" / "import_epos.py"
 EXCERPT = Path(__file__).resolve().parent / "data" / "epos_driveNo3_steady_1rpm_excerpt.csv"
@@ -45,12 +47,25 @@ def _importer():
     return mod
 
 
-# Where the workflow is allowed to trail the rigid-body reference on validation, and why:
-# driveNo2's viscous drag brings a BIC gain of 2.6 on the fit part, below the threshold of 10
-# that every term must earn, so the workflow leaves it out; the rigid-body model always fits
-# c and validates 1.2 % better (0.1791 against 0.1812).  Not a tuned constant: the measured
-# gap, reported as not reached in docs/discrepancy.md.
+# Where the workflow may trail the rigid-body reference on validation, and why: driveNo2's
+# viscous drag brings a BIC gain of 2.6 on the fit part, below the threshold of 10 that every
+# term must earn, so the workflow leaves it out; the rigid-body model always fits c and
+# validates 1.2 % better (0.1652 against 0.1671, 2026-11-25).  Not a tuned constant: the
+# measured gap, reported as not reached in docs/discrepancy.md and warned in the report.
 REFERENCE_SLACK = {"driveNo2": 1.02}
+
+
+def _with_alpha(rec, summary):
+    """The recording's usable samples with alpha at the run's chosen cut-off."""
+    rec, _ = with_acceleration(rec, DiscrepancySettings(),
+                               {"accel_cutoff_hz": summary["acceleration"]["cutoff_hz"]})
+    return rec.take(usable(rec)[0])
+
+
+def _rigid_body_on_all(fit, summary):
+    """The reference as an engineer would fit it: least squares on every usable sample."""
+    return rigid_body_fit(_with_alpha(fit, summary))
+
 
 epos = _importer()
 REALDATA, WHY_MISSING = epos.find_realdata()
@@ -115,11 +130,18 @@ def test_measured_drive_named_and_validated(drives, drive):
     rows = list(csv.DictReader((res["dir"] / "out" / "validation" / "prediction.csv").open()))
     assert list(rows[0]) == ["t_s", "torque_meas_nm", "torque_pred_nm", "torque_augmented_nm"]
     assert len(rows) == v["n"]
-    # no worse than the rigid-body least-squares reference, fitted on the same runs
-    settings = DiscrepancySettings()
-    _, ref = rigid_body_on(load_recording(res["fit"]), load_recording(res["val"]), settings)
+    # no worse than the rigid-body least-squares reference, fitted in the same run on the
+    # same samples with the same alpha (issue 19); and the reference is recomputed here
+    ref = v["reference_relative_error"]
     assert v["relative_error_after"] <= ref * REFERENCE_SLACK.get(drive, 1.0), \
         (v["relative_error_after"], ref)
+    worse = v["relative_error_after"] > ref
+    assert worse == any("WORSE than the rigid-body reference" in w for w in s["warnings"])
+    fit = load_recording(res["fit"])
+    own = rigid_body_relative_error(_rigid_body_on_all(fit, s), _with_alpha(
+        load_recording(res["val"]), s))
+    assert own == pytest.approx(ref, rel=1e-9)
+    assert "heldout" in s and s["heldout"]["reference_relative_error"] > 0
     # the drag is the mean of the two directions' measured steady torque
     steady = _steady(drive)
     mean_drag = statistics.mean(abs(float(r["mean_tau_2ndhalf_Nm"])) for r in steady)

@@ -1,0 +1,137 @@
+"""
+What the compiled (numba) kernels share: the jit decorator and two linear-algebra loops.
+
+The ball-screw kernel (``ball_screw/kernel.py``) and the linear-bearing kernel
+(``linear_bearing/kernel.py``) each solved small dense systems with their own Gaussian
+elimination, and the ball screw's rigid and elastic Newton systems each had their own block
+back-substitution.  One implementation of each lives here.
+
+Why hand-written loops rather than scipy/LAPACK: the systems are 7 x 7 to 9 x 9 (ball screw)
+and 3 g x 3 g (linear bearing) and are solved inside compiled loops thousands of times per
+second; a call out to LAPACK from numba costs more than the elimination itself (measured in
+issue 4 and issue 15: the numpy paths were dominated by such per-call overhead).
+
+Without numba the module still imports: ``jit`` returns the plain Python function and
+``HAVE_NUMBA`` is False (the models then use their numpy paths, which call nothing here
+except the ball screw's elastic system, run as plain Python).
+"""
+
+import math
+
+try:
+    import numba
+    HAVE_NUMBA = True
+
+    def jit(fn):
+        """
+        Compile ``fn`` with numba (no Python objects), cached on disk.
+
+        fastmath limited to FMA contraction, reciprocals and reassociation (20 % faster
+        evaluation in the ball-screw kernel, agrees with the numpy path to ~1e-14); never
+        nnan/ninf: the line searches test for non-finite residuals.  nogil: the live node's
+        executor thread takes and answers inputs while the model thread is inside a solve.
+        """
+        return numba.njit(cache=True, error_model="numpy", nogil=True,
+                          fastmath={"contract", "arcp", "reassoc"})(fn)
+except ImportError:        # pragma: no cover - numba is an exec_depend
+    HAVE_NUMBA = False
+
+    def jit(fn):
+        """Without numba: the plain Python function."""
+        return fn
+
+# Levenberg-Marquardt shift of a singular matrix, relative to its largest entry: sqrt(eps)
+# of float64 (the numpy paths use the same shift).
+_LM_SHIFT = math.sqrt(2.220446049250313e-16)
+
+
+@jit
+def gauss_solve(d, w, n, j0, d0, w0):
+    """
+    Solve d[:n, :n] @ X = w[:n, j0:] in place (w <- X) by Gaussian elimination.
+
+    Partial pivoting.  A singular (or non-finite) matrix is solved once more with a
+    Levenberg-Marquardt diagonal shift sqrt(eps) max|d| (the numpy paths' shift).  d is
+    overwritten; d0 (>= n x n) and w0 (>= n x w.shape[1]) are work arrays for the copies the
+    retry needs.  Returns False if the shifted matrix is singular too (w is then undefined).
+    """
+    m = w.shape[1]
+    for r in range(n):
+        for j in range(n):
+            d0[r, j] = d[r, j]
+        for j in range(j0, m):
+            w0[r, j] = w[r, j]
+    for attempt in range(2):
+        singular = False
+        for col in range(n):
+            piv = col
+            big = abs(d[col, col])
+            for r in range(col + 1, n):
+                if abs(d[r, col]) > big:
+                    big = abs(d[r, col])
+                    piv = r
+            if big == 0.0 or not math.isfinite(big):
+                singular = True
+                break
+            if piv != col:
+                for j in range(n):
+                    tmp = d[col, j]
+                    d[col, j] = d[piv, j]
+                    d[piv, j] = tmp
+                for j in range(j0, m):
+                    tmp = w[col, j]
+                    w[col, j] = w[piv, j]
+                    w[piv, j] = tmp
+            inv = 1.0 / d[col, col]
+            for r in range(col + 1, n):
+                fac = d[r, col] * inv
+                if fac != 0.0:
+                    for j in range(col + 1, n):
+                        d[r, j] -= fac * d[col, j]
+                    for j in range(j0, m):
+                        w[r, j] -= fac * w[col, j]
+        if not singular:
+            for col in range(n - 1, -1, -1):
+                inv = 1.0 / d[col, col]
+                for j in range(j0, m):
+                    acc = w[col, j]
+                    for k in range(col + 1, n):
+                        acc -= d[col, k] * w[k, j]
+                    w[col, j] = acc * inv
+            return True
+        big = 1e-300
+        for r in range(n):
+            for j in range(n):
+                big = max(big, abs(d0[r, j]))
+        shift = _LM_SHIFT * big
+        for r in range(n):
+            for j in range(n):
+                d[r, j] = d0[r, j]
+            d[r, r] += shift
+            for j in range(j0, m):
+                w[r, j] = w0[r, j]
+    return False
+
+
+@jit
+def back_substitute_block(xs, ys, k, last):
+    """
+    One block of the back-substitution of a block-tridiagonal (Thomas) sweep.
+
+    The forward sweep left, per block k of size b = ys.shape[1], xs[k, :, :b] = D_k^-1 U_k
+    (the coupling to block k+1) and xs[k, :, b:b+2] = D_k^-1 times the two right-hand sides.
+    Writes block k's two solutions ys[k, :, 0:2] = xs[k, :, b:b+2] - xs[k, :, :b] @ ys[k+1]
+    (without the product when ``last``: block k is the last of its sweep).  Called for k
+    from the last block down; shared by the rigid (b = 7) and the elastic (b = 9) Newton
+    systems of the ball screw.
+    """
+    nb = ys.shape[1]
+    for r in range(nb):
+        yv = xs[k, r, nb]
+        zv = xs[k, r, nb + 1]
+        if not last:
+            for m in range(nb):
+                yv -= xs[k, r, m] * ys[k + 1, m, 0]
+                zv -= xs[k, r, m] * ys[k + 1, m, 1]
+        ys[k, r, 0] = yv
+        ys[k, r, 1] = zv

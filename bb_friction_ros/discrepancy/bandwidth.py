@@ -1,0 +1,215 @@
+"""
+The acceleration bandwidth: the cut-off of the filter that derives the nut acceleration.
+
+JointState and most logs carry no acceleration, so it is the derivative of the nut velocity
+low-passed at a cut-off f_c (``empirical_terms.AccelerationFilter``).  Too low, and the filter
+misses the peaks of short moves: a fit then inflates the inertia J to make up for them, and on
+another recording the inertia torque is wrong exactly where it is large (issue 19: 41 % against
+the rigid-body model's 12.4 % on a measured servo axis, with a fixed 10 Hz).  Too high, and the
+acceleration is mostly differentiated noise.  Recorders run from 10 Hz to several kHz, so the
+cut-off is chosen per recording (``choose_cutoff``):
+
+- candidates: ``accel_cutoff_grid_points`` log-spaced cut-offs from the highest safe one,
+  ``accel_max_cutoff_fraction`` of the sample rate (0.2: 40 % of Nyquist, where the
+  Butterworth still attenuates the aliased band), down by a factor ``accel_cutoff_grid_span``;
+- score: the blocked K-fold cross-validated mean square error (``cv_folds`` contiguous time
+  blocks of the fit part) of the rigid-body regression J alpha + c omega + T_c sign omega + T_0
+  of the residual, alpha derived at that cut-off.  The inertia column is the only one that
+  changes with the cut-off, so the score measures how well that alpha explains torque on
+  data the fit did not see;
+- choice: the lowest score.  The one-standard-error rule (the lowest cut-off within one
+  standard error of the best, for the shortest live lag) was tried and rejected on measured
+  data: the acceleration phases sit in one or two of the contiguous folds, so the fold
+  scatter is large and the rule fell back to cut-offs whose validation error was 20-30 %
+  higher (docs/discrepancy.md);
+- inertia identifiable: only when the best alpha lowers the score of the same regression
+  without alpha.  Otherwise (a 10 Hz log, or a recording without acceleration phases) the
+  inertia term is not tested, and the report says why instead of fitting noise.
+
+An explicit ``accel_cutoff_hz`` (> 0) overrides the choice; above the highest safe cut-off it
+is refused, naming the key.
+"""
+
+import dataclasses
+import math
+
+import numpy as np
+
+from bb_friction_ros.config import ConfigError
+from bb_friction_ros.empirical_terms import zero_phase_acceleration
+
+
+def sample_step_s(rec):
+    """Return the median positive sample step [s] of a recording, or None."""
+    dt = np.diff(rec.t_s)
+    dt = dt[dt > 0]
+    return float(np.median(dt)) if dt.size else None
+
+
+def max_cutoff_hz(step_s, settings):
+    """Return the highest safe cut-off [Hz]: ``accel_max_cutoff_fraction`` of the rate."""
+    return settings.accel_max_cutoff_fraction / step_s
+
+
+def acceleration_filter_of(rec, settings, cutoff_hz=None):
+    """
+    Return the acceleration filter's settings for a recording: {accel_cutoff_hz, max_gap_s}.
+
+    The cut-off is ``cutoff_hz`` (or the settings' explicit ``accel_cutoff_hz``; with neither,
+    the highest safe one), at most ``accel_max_cutoff_fraction`` of the sample rate (1 /
+    median step); a step longer than ``segment_gap_factor`` median steps is a gap.
+    """
+    step = sample_step_s(rec)
+    if step is None:
+        return None
+    top = max_cutoff_hz(step, settings)
+    fc = cutoff_hz if cutoff_hz is not None else (settings.accel_cutoff_hz or top)
+    return {"accel_cutoff_hz": min(fc, top), "max_gap_s": settings.segment_gap_factor * step}
+
+
+def with_acceleration(rec, settings, spec=None):
+    """
+    Return ``rec`` with its nut acceleration: the CSV's own column, or derived.
+
+    Derived: the zero-phase ``AccelerationFilter`` on the nut velocity per continuous
+    segment.  Runs (the stamps restart) are filtered on their own, each with the gap rule and
+    the cut-off limit of its own sample rate (a recording of several recorder files may mix
+    rates); ``spec`` (filter settings) overrides the cut-off.  Samples of segments too short
+    to derive it are NaN.  Return (recording, spec of the whole recording).
+    """
+    whole = acceleration_filter_of(rec, settings)
+    if spec is not None and whole is not None:
+        whole["accel_cutoff_hz"] = spec["accel_cutoff_hz"]
+    if rec.nut_accel_rad_s2 is not None or whole is None:
+        return rec, whole
+    accel = np.full(len(rec), np.nan)
+    starts = np.concatenate(([0], np.flatnonzero(np.diff(rec.t_s) < 0.0) + 1, [len(rec)]))
+    cutoffs = []
+    for lo, hi in zip(starts[:-1], starts[1:]):
+        run = rec.take(slice(lo, hi))
+        own = acceleration_filter_of(run, settings, whole["accel_cutoff_hz"])
+        if own is None:
+            continue
+        fc = min(whole["accel_cutoff_hz"], own["accel_cutoff_hz"])
+        cutoffs.append(fc)
+        accel[lo:hi] = zero_phase_acceleration(run.t_s, run.nut_velocity_rad_s, fc,
+                                               own["max_gap_s"],
+                                               settings.accel_min_segment_samples)
+    info = dict(rec.info)
+    if cutoffs and (min(cutoffs) < whole["accel_cutoff_hz"]):
+        info["acceleration_run_cutoff_hz"] = [min(cutoffs), max(cutoffs)]
+    return dataclasses.replace(rec, nut_accel_rad_s2=accel, info=info), whole
+
+
+@dataclasses.dataclass
+class CutoffChoice:
+    """The acceleration cut-off of a recording and the evidence for it (summary.json)."""
+
+    cutoff_hz: float
+    chosen_by: str
+    sample_rate_hz: float
+    candidates: list            # [{cutoff_hz, cv_mse_nm2, cv_rmse_nm, excess_se}]
+    no_acceleration_cv_rmse_nm: float = None
+    inertia_identifiable: bool = True
+    reason: str = ""            # why inertia cannot be identified ("" when it can)
+
+    def as_dict(self):
+        """Return the summary.json ``acceleration`` fields of the choice."""
+        return {"cutoff_hz": self.cutoff_hz, "chosen_by": self.chosen_by,
+                "sample_rate_hz": self.sample_rate_hz, "candidates": self.candidates,
+                "no_acceleration_cv_rmse_nm": self.no_acceleration_cv_rmse_nm,
+                "inertia_identifiable": self.inertia_identifiable,
+                "inertia_reason": self.reason or None}
+
+
+def run_slices(rec):
+    """Return the slices of the runs of a recording (a run restarts where t_s goes back)."""
+    starts = np.concatenate(([0], np.flatnonzero(np.diff(rec.t_s) < 0.0) + 1, [len(rec)]))
+    return [slice(int(a), int(b)) for a, b in zip(starts[:-1], starts[1:])]
+
+
+def cutoff_grid(step_s, settings):
+    """Return the candidate cut-offs [Hz], ascending."""
+    top = max_cutoff_hz(step_s, settings)
+    return [float(v) for v in np.geomspace(top / settings.accel_cutoff_grid_span, top,
+                                           settings.accel_cutoff_grid_points)]
+
+
+def _fold_mse(cols, r, folds):
+    """Return the per-fold mean square error of blocked K-fold CV of r on ``cols``."""
+    a = np.column_stack(cols)
+    n = r.size
+    edges = np.linspace(0, n, folds + 1).astype(int)
+    out = np.empty(folds)
+    for k, (lo, hi) in enumerate(zip(edges[:-1], edges[1:])):
+        train = np.ones(n, dtype=bool)
+        train[lo:hi] = False
+        coef, *_ = np.linalg.lstsq(a[train], r[train], rcond=None)
+        e = r[lo:hi] - a[lo:hi] @ coef
+        out[k] = float(e @ e) / max(hi - lo, 1)
+    return out
+
+
+def choose_cutoff(rec, settings, usable):
+    """
+    Choose the acceleration cut-off of Recording ``rec`` (module docstring).
+
+    ``usable(rec)`` returns (mask of analysable samples, dropped counts), as the workflow's.
+    Return a CutoffChoice; None when the recording has no sample step or carries its own
+    acceleration (the CSV column).
+    """
+    step = sample_step_s(rec)
+    if step is None or rec.nut_accel_rad_s2 is not None:
+        return None
+    # a file of several recorder runs may mix rates (the RViMLab exports: 4-156 Hz): the
+    # grid reaches the fastest run's safe cut-off; each run is still capped at its own
+    step = min(s for s in (sample_step_s(rec.take(sl)) for sl in run_slices(rec))
+               if s is not None)
+    rate = 1.0 / step
+    top = max_cutoff_hz(step, settings)
+    if settings.accel_cutoff_hz > 0:
+        if settings.accel_cutoff_hz > top * (1 + 1e-9):
+            raise ConfigError(
+                f"discrepancy.accel_cutoff_hz: {settings.accel_cutoff_hz:g} Hz is above the "
+                f"highest safe cut-off of {rec.info.get('input', 'the recording')}: "
+                f"{settings.accel_max_cutoff_fraction:g} x its sample rate {rate:.4g} Hz = "
+                f"{top:.4g} Hz (accel_max_cutoff_fraction; Nyquist {rate / 2:.4g} Hz); set "
+                "it lower, or 0 to choose it from the data")
+        return CutoffChoice(settings.accel_cutoff_hz, "settings (accel_cutoff_hz)", rate, [])
+    grid = cutoff_grid(step, settings)
+    alphas = []
+    for fc in grid:
+        derived, _ = with_acceleration(rec, settings, {"accel_cutoff_hz": fc})
+        alphas.append(derived.nut_accel_rad_s2)
+    ok = usable(dataclasses.replace(rec, nut_accel_rad_s2=alphas[-1]))[0]
+    for a in alphas:
+        ok &= np.isfinite(a)
+    idx = np.flatnonzero(ok)
+    n_fit = int(math.floor((1.0 - settings.holdout_fraction) * idx.size))
+    idx = idx[:n_fit]           # the fit part only: the held-out part stays unseen
+    folds = settings.cv_folds
+    if idx.size < 4 * folds:
+        return CutoffChoice(grid[-1], "too few samples to choose (the highest safe cut-off)",
+                            rate, [], None, False, "too few usable samples to cross-validate")
+    w = rec.nut_velocity_rad_s[idx]
+    r = rec.torque_meas_nm[idx] - rec.torque_pred_nm[idx]
+    base = [w, np.sign(w), np.ones_like(w)]
+    m0 = _fold_mse(base, r, folds)
+    scores = [_fold_mse([a[idx]] + base, r, folds) for a in alphas]
+    means = [float(np.mean(m)) for m in scores]
+    best = int(np.argmin(means))
+    candidates = [{"cutoff_hz": fc, "cv_mse_nm2": means[k], "cv_rmse_nm": math.sqrt(means[k])}
+                  for k, fc in enumerate(grid)]
+    m0_mean = float(np.mean(m0))
+    choice = CutoffChoice(grid[best], "blocked cross-validation (lowest error)", rate,
+                          candidates, math.sqrt(m0_mean))
+    if not means[best] < m0_mean:
+        choice.inertia_identifiable = False
+        choice.reason = (
+            f"at {rate:.4g} samples/s (fastest run) no acceleration, at any cut-off up to "
+            f"{top:.3g} Hz, lowers the cross-validated error of the rigid-body fit (best "
+            f"{math.sqrt(means[best]):.4g} N m against {math.sqrt(m0_mean):.4g} N m without "
+            "the acceleration): the sample rate or the excitation cannot tell the inertia "
+            "torque from noise")
+        choice.chosen_by += "; inertia not identifiable"
+    return choice
