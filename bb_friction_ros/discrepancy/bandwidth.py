@@ -108,10 +108,13 @@ class CutoffChoice:
     cutoff_hz: float
     chosen_by: str
     sample_rate_hz: float
-    candidates: list            # [{cutoff_hz, cv_mse_nm2, cv_rmse_nm, excess_se}]
+    candidates: list            # [{cutoff_hz, cv_mse_nm2, cv_rmse_nm}]
     no_acceleration_cv_rmse_nm: float = None
     inertia_identifiable: bool = True
     reason: str = ""            # why inertia cannot be identified ("" when it can)
+    # the best cut-off is the highest this sample rate allows: acceleration edges faster than
+    # it are not resolved, and J is then only partly identifiable (docs/discrepancy.md)
+    bandwidth_limited: bool = False
 
     def as_dict(self):
         """Return the summary.json ``acceleration`` fields of the choice."""
@@ -119,7 +122,24 @@ class CutoffChoice:
                 "sample_rate_hz": self.sample_rate_hz, "candidates": self.candidates,
                 "no_acceleration_cv_rmse_nm": self.no_acceleration_cv_rmse_nm,
                 "inertia_identifiable": self.inertia_identifiable,
-                "inertia_reason": self.reason or None}
+                "inertia_reason": self.reason or None,
+                "bandwidth_limited": self.bandwidth_limited,
+                "statement": self.statement()}
+
+    def statement(self):
+        """Return the report's sentence on what the cut-off means for the inertia."""
+        if not self.candidates:
+            return f"cut-off {self.cutoff_hz:.3g} Hz ({self.chosen_by})"
+        if not self.inertia_identifiable:
+            return f"inertia cannot be identified here: {self.reason}"
+        if self.bandwidth_limited:
+            return (f"the cross-validated error still falls at the highest cut-off this "
+                    f"sample rate allows ({self.cutoff_hz:.3g} Hz at {self.sample_rate_hz:.4g}"
+                    " samples/s): acceleration edges faster than that are not resolved, so "
+                    "the inertia is only partly identifiable (J may absorb the missed "
+                    "peaks); record faster where the inertia matters")
+        return (f"the cross-validated error is lowest at {self.cutoff_hz:.3g} Hz, below the "
+                f"highest safe cut-off: the recording resolves its accelerations")
 
 
 def run_slices(rec):
@@ -203,7 +223,9 @@ def choose_cutoff(rec, settings, usable):
     m0_mean = float(np.mean(m0))
     choice = CutoffChoice(grid[best], "blocked cross-validation (lowest error)", rate,
                           candidates, math.sqrt(m0_mean))
+    choice.bandwidth_limited = best == len(grid) - 1
     if not means[best] < m0_mean:
+        choice.bandwidth_limited = False
         choice.inertia_identifiable = False
         choice.reason = (
             f"at {rate:.4g} samples/s (fastest run) no acceleration, at any cut-off up to "

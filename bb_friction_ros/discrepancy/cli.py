@@ -45,6 +45,12 @@ def add_discrepancy_parser(subparsers):
                    help="model: residual = measured - the ball-screw model; zero: no model of "
                    "this screw, every term is identified from the measured torque (a CSV "
                    "whose torque_pred_nm is 0 does the same)")
+    p.add_argument("--torque-constant-nm-per-a", type=float, metavar="K",
+                   help="the measured torque is K [N m/A] times the motor current: the CSV "
+                   "column motor_current_a, or the bag topic --current-topic (issue 19)")
+    p.add_argument("--current-topic", default="motor_current",
+                   help="bag topic of the motor current (std_msgs/Float64 or Float32, A; "
+                   "log time as stamp), read with --torque-constant-nm-per-a")
     p.add_argument("--no-plots", action="store_true", help="write no PNG figures")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--json", action="store_true", help="print summary.json to stdout")
@@ -67,7 +73,8 @@ def run_discrepancy_command(args):
             replay_settings=replay_settings, topics=Topics.from_args(args),
             recompute=args.recompute_prediction, plots=not args.no_plots,
             progress=not args.no_progress, validate_path=args.validate,
-            baseline=args.baseline)
+            baseline=args.baseline, torque_constant_nm_per_a=args.torque_constant_nm_per_a,
+            current_topic=args.current_topic)
     except InputProblem as exc:
         print(f"bb-friction discrepancy: {exc}", file=sys.stderr)
         return 2

@@ -43,6 +43,11 @@ CSV_PREDICTION = "torque_pred_nm"
 CSV_ACCELERATION = "nut_accel_rad_s2"
 # replay's prediction.csv of a model with fitted terms: the terms' share of torque_pred_nm
 CSV_EMPIRICAL = "torque_empirical_nm"
+# issue 19: most users log the motor current, not the torque; with --torque-constant-nm-per-a
+# K the measured torque is K times it
+CSV_CURRENT = "motor_current_a"
+CURRENT_FLAG = "--torque-constant-nm-per-a"
+CURRENT_TOPIC = "motor_current"
 # How closely the --config's terms, evaluated on the CSV rows as the runner does, must
 # reproduce its torque_empirical_nm: replay writes it with repr (exact), so only rounding
 # of a re-saved file [N m] and a relative share of its RMS separate the two.
@@ -212,23 +217,76 @@ def _split_measured(events, stamps, values):
 
 
 def load_bag(path, config_path, replay_settings=NodeParameters(), topics=Topics(),
-             progress=False, baseline="model"):
+             progress=False, baseline="model", current=None):
     """
     Read a rosbag2, predict through the replay path, align the measured torque.
 
     The bag is streamed: inputs go through the model as they are read, and predictions and
-    measurements are kept as packed float columns only.
+    measurements are kept as packed float columns only.  ``current`` (torque constant [N m/A],
+    topic): the measurement is the motor current on that topic times the constant.
     """
+    measured = None
+    if current is not None:
+        measured = read_current_topic(path, current[1], current[0])
     try:
         src = BagInput(path, topics)
     except (FileNotFoundError, ValueError) as exc:
         raise InputProblem(str(exc)) from exc
     with src:
-        return _load_bag_input(src, path, config_path, replay_settings, topics, progress,
-                               baseline)
+        rec = _load_bag_input(src, path, config_path, replay_settings, topics, progress,
+                              baseline, measured)
+    if current is not None:
+        rec.info["measured_torque_source"] = (f"topic {current[1]} (motor current) x "
+                                              f"{current[0]:g} N m/A ({CURRENT_FLAG})")
+    else:
+        rec.info["measured_torque_source"] = f"topic {topics.measured_torque}"
+    return rec
 
 
-def _load_bag_input(src, path, config_path, replay_settings, topics, progress, baseline):
+# Message types a motor-current topic may have: the value [A] is ``data``; they carry no
+# header, so the sample's time is the bag's log time.
+CURRENT_TYPES = ("std_msgs/msg/Float64", "std_msgs/msg/Float32")
+
+
+def read_current_topic(path, topic, torque_constant_nm_per_a):
+    """
+    Return (stamps [s], torque [N m]) of a motor-current topic of a bag, scaled by K.
+
+    The topic's type must be one of ``CURRENT_TYPES`` (the current in ``data``, A); the log
+    time is its stamp.  A missing or empty topic is refused, naming it and the flag.
+    """
+    from rosbags.highlevel import AnyReader
+    name = "/" + topic.lstrip("/")
+    try:
+        reader = AnyReader([Path(path)])
+        reader.open()
+    except Exception as exc:         # rosbags raises its own types for a damaged bag
+        raise InputProblem(f"{path}: cannot read the bag ({exc})") from exc
+    try:
+        conns = [c for c in reader.connections if c.topic == name]
+        if not conns or not sum(c.msgcount for c in conns):
+            have = ", ".join(sorted({c.topic for c in reader.connections})) or "none"
+            raise InputProblem(f"{path}: no motor current: topic {name} is missing or empty "
+                               f"(topics in the bag: {have}); {CURRENT_FLAG} reads the "
+                               "current from --current-topic")
+        bad = [c.msgtype for c in conns if c.msgtype not in CURRENT_TYPES]
+        if bad:
+            raise InputProblem(f"{path}: topic {name} has type {bad[0]}; a motor current "
+                               f"topic must be {' or '.join(CURRENT_TYPES)} (the current in "
+                               "data, A)")
+        stamps, values = array("d"), array("d")
+        for conn, t_ns, raw in reader.messages(connections=conns):
+            v = float(reader.deserialize(raw, conn.msgtype).data)
+            if math.isfinite(v):
+                stamps.append(t_ns * 1e-9)
+                values.append(torque_constant_nm_per_a * v)
+    finally:
+        reader.close()
+    return stamps, values
+
+
+def _load_bag_input(src, path, config_path, replay_settings, topics, progress, baseline,
+                    current=None):
     counts = src.counts                  # messages actually read, filled as the bag streams
     events = (ev for _, _, _, ev in src.messages(all_topics=False))
 
@@ -239,10 +297,14 @@ def _load_bag_input(src, path, config_path, replay_settings, topics, progress, b
                             "(--measured-topic)")
     measured = [c.msgcount for c in src.connections
                 if c.topic.lstrip("/") == topics.measured_torque.lstrip("/")]
-    if not any(measured):
+    if current is None and not any(measured):
         raise no_measurement()        # before running the model over the whole bag
-    meas_t, meas_v = array("d"), array("d")
-    inputs = _split_measured(events, meas_t, meas_v)
+    if current is None:
+        meas_t, meas_v = array("d"), array("d")
+        inputs = _split_measured(events, meas_t, meas_v)
+    else:                             # the motor current x K, not the torque topic
+        inputs = _split_measured(events, array("d"), array("d"))
+        meas_t, meas_v = current
     if baseline == "zero":
         packed, rejected = zero_baseline_events(inputs, replay_settings)
         info = {"input": str(path), "format": "rosbag2", "baseline": "zero",
@@ -265,6 +327,37 @@ def _load_bag_input(src, path, config_path, replay_settings, topics, progress, b
     measured_events = (Event("measured_torque", t, value=v) for t, v in zip(meas_t, meas_v))
     meas = measured_torque_at(measured_events, packed.column("stamp_s"))   # as replay does
     return _from_packed(packed, meas, info, base)
+
+
+def _csv_header(path):
+    """Return the header names of a CSV (empty when unreadable: the reader says why)."""
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            return next(csv.reader(fh), [])
+    except (OSError, UnicodeDecodeError):
+        return []
+
+
+def measurement_columns(path, torque_constant_nm_per_a):
+    """
+    Return the required columns of a CSV: its torque, or its motor current (issue 19).
+
+    ``motor_current_a`` needs ``--torque-constant-nm-per-a``; a constant without the column,
+    or a current without the constant, is refused, naming the flag or the column.
+    """
+    header = _csv_header(path)
+    base = CSV_REQUIRED[:-1]
+    if torque_constant_nm_per_a is None:
+        if CSV_CURRENT in header and "torque_meas_nm" not in header:
+            raise InputProblem(f"{path}: has {CSV_CURRENT} but no torque_meas_nm: a motor "
+                               f"current needs the motor's torque constant, "
+                               f"{CURRENT_FLAG} K [N m/A] (the measured torque is K x "
+                               "current)")
+        return CSV_REQUIRED
+    if header and CSV_CURRENT not in header:
+        raise InputProblem(f"{path}: {CURRENT_FLAG} was given but the CSV has no "
+                           f"{CSV_CURRENT} column (has: {', '.join(header)})")
+    return base + (CSV_CURRENT,)
 
 
 def _read_csv_columns(path, required=CSV_REQUIRED):
@@ -384,11 +477,16 @@ def csv_events(cols, nut_joint):
 
 
 def load_csv(path, config_path, replay_settings=NodeParameters(), recompute=False,
-             progress=False, baseline="model"):
+             progress=False, baseline="model", torque_constant_nm_per_a=None):
     """Read a CSV recording; reuse its ``torque_pred_nm`` unless ``recompute`` (see module)."""
-    cols = _read_csv_columns(path)
+    cols = _read_csv_columns(path, measurement_columns(path, torque_constant_nm_per_a))
     if cols["t_s"].size == 0:
         raise InputProblem(f"{path}: CSV has no data rows")
+    measured_from = "csv column torque_meas_nm"
+    if torque_constant_nm_per_a is not None:
+        cols["torque_meas_nm"] = torque_constant_nm_per_a * cols[CSV_CURRENT]
+        measured_from = (f"csv column {CSV_CURRENT} x {torque_constant_nm_per_a:g} N m/A "
+                         f"({CURRENT_FLAG})")
     for c in ("t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n", CSV_ACCELERATION):
         if c in cols and not np.all(np.isfinite(cols[c])):
             line = int(np.flatnonzero(~np.isfinite(cols[c]))[0]) + 2
@@ -398,6 +496,7 @@ def load_csv(path, config_path, replay_settings=NodeParameters(), recompute=Fals
     check_time_advances(path, cols["t_s"])
     accel = cols.get(CSV_ACCELERATION)
     info = {"input": str(path), "format": "csv", "runs": runs,
+            "measured_torque_source": measured_from,
             "acceleration_source": f"csv column {CSV_ACCELERATION}" if accel is not None
             else "derived (zero-phase filter)"}
     t_run = run_times(cols["t_s"])
@@ -432,16 +531,31 @@ def load_csv(path, config_path, replay_settings=NodeParameters(), recompute=Fals
 
 
 def load_recording(path, config_path=None, replay_settings=NodeParameters(), topics=Topics(),
-                   recompute=False, progress=False, baseline="model"):
-    """Load a rosbag2 directory or a ``.csv`` file (see module docstring)."""
+                   recompute=False, progress=False, baseline="model",
+                   torque_constant_nm_per_a=None, current_topic=CURRENT_TOPIC):
+    """
+    Load a rosbag2 directory or a ``.csv`` file (see module docstring).
+
+    ``torque_constant_nm_per_a``: the measured torque is this times the motor current (the
+    CSV column ``motor_current_a``, or the bag topic ``current_topic``).
+    """
     path = Path(path)
     config_path = config_path or bundled_config("ball_screw.yaml")
     if not Path(config_path).is_file():
         raise ConfigError(f"{config_path}: no such config file")
+    if torque_constant_nm_per_a is not None and not (math.isfinite(torque_constant_nm_per_a)
+                                                     and torque_constant_nm_per_a > 0):
+        raise InputProblem(f"{CURRENT_FLAG}: must be a finite torque constant > 0 N m/A, got "
+                           f"{torque_constant_nm_per_a!r}")
     if path.is_dir():
-        return load_bag(path, config_path, replay_settings, topics, progress, baseline)
+        current = None
+        if torque_constant_nm_per_a is not None:
+            current = (torque_constant_nm_per_a, current_topic)
+        return load_bag(path, config_path, replay_settings, topics, progress, baseline,
+                        current)
     if path.is_file() and path.suffix.lower() == ".csv":
-        return load_csv(path, config_path, replay_settings, recompute, progress, baseline)
+        return load_csv(path, config_path, replay_settings, recompute, progress, baseline,
+                        torque_constant_nm_per_a)
     if not path.exists():
         raise InputProblem(f"{path}: no such bag or CSV file")
     raise InputProblem(f"{path}: neither a rosbag2 directory nor a .csv file")

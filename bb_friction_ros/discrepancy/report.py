@@ -85,7 +85,8 @@ def write_report(out, a, summary, plots=True, validation=None):
                   "as measured, not a deviation from the ball-screw model.", ""]
     lines += [
         f"- input: `{info.get('input', '?')}` ({info.get('format', '?')}); prediction: "
-        f"{info.get('prediction_source', '?')}",
+        f"{info.get('prediction_source', '?')}; baseline {info.get('baseline', '?')}; "
+        f"measured torque: {info.get('measured_torque_source', '?')}",
         f"- samples: {s['usable']} usable ({s['fit']} fit, first part; {s['holdout']} held "
         f"out, last part); dropped: {s['dropped']}",
         f"- noise level estimated from the residual (MAD of lag-{nm.get('lag_samples', 1)} "
@@ -161,6 +162,8 @@ def acceleration_sentence(acc):
                  f"{_f(acc.get('no_acceleration_cv_rmse_nm'), 4)} N m)")
     if acc.get("inertia_identifiable") is False:
         text += f". **Inertia cannot be identified here:** {acc.get('inertia_reason')}"
+    elif acc.get("bandwidth_limited"):
+        text += f". **Bandwidth-limited:** {acc.get('statement')}"
     text += (f"; segments split at gaps > {_f(acc['max_gap_s'], 3)} s; the live node's and "
              f"replay's causal filter at this cut-off lags by {_f(acc['live_lag_s'] * 1e3, 3)}"
              " ms")

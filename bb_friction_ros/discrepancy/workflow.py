@@ -539,7 +539,8 @@ def check_same_baseline(rec, rec2):
 
 def run_discrepancy(input_path, out, config=None, settings=None, replay_settings=None,
                     topics=None, recompute=False, plots=True, progress=False, validate_path=None,
-                    baseline="model"):
+                    baseline="model", torque_constant_nm_per_a=None,
+                    current_topic="motor_current"):
     """
     Run the whole workflow on a bag or CSV into directory ``out``; return (status, summary).
 
@@ -548,6 +549,8 @@ def run_discrepancy(input_path, out, config=None, settings=None, replay_settings
     raises data.InputProblem; a bad config raises ConfigError.  ``validate_path``: a second
     recording the augmented model is applied to without refitting (``DIR/validation/``).
     ``baseline`` "zero": no model of this screw; every term is identified from the data.
+    ``torque_constant_nm_per_a``: the measured torque is K times the motor current (CSV
+    column ``motor_current_a``, bag topic ``current_topic``), for both recordings.
     """
     from pathlib import Path
     import json
@@ -560,7 +563,8 @@ def run_discrepancy(input_path, out, config=None, settings=None, replay_settings
     settings = settings or DiscrepancySettings()
     config = Path(config) if config else bundled_config("ball_screw.yaml")
     load = dict(replay_settings=replay_settings or NodeParameters(), topics=topics or Topics(),
-                recompute=recompute, progress=progress, baseline=baseline)
+                recompute=recompute, progress=progress, baseline=baseline,
+                torque_constant_nm_per_a=torque_constant_nm_per_a, current_topic=current_topic)
     rec = load_recording(input_path, config, **load)
     rec2 = load_recording(validate_path, config, **load) if validate_path else None
     check_same_baseline(rec, rec2)

@@ -5,6 +5,8 @@ Issue 19 and the discrepancy findings of issue 23 (round 2).
 - 23.3: a --baseline zero augmented.yaml says physics: none and replays to the reported RMSE;
 - 23.4: --validate refuses recordings of different baselines; the summary states both;
 - 23.8: a reused prediction.csv with torque_empirical_nm needs the --config that made it;
+- issue 19: the motor current (CSV column motor_current_a, bag topic motor_current) times
+  --torque-constant-nm-per-a is the measured torque; without the constant, exit 2 naming it;
 - 23.9 is in test/test_model_file.py (a model file with no ball-screw values is refused).
 """
 
@@ -16,12 +18,20 @@ import pytest
 import yaml
 
 from bb_friction_ros.bags import with_measurement, write_events
+from bb_friction_ros.discrepancy.bandwidth import with_acceleration
+from bb_friction_ros.discrepancy.data import inputs_of
+from bb_friction_ros.discrepancy.selection import Candidate
+from bb_friction_ros.discrepancy.servo_moves import Drive, servo_recording
+from bb_friction_ros.discrepancy.settings import DiscrepancySettings
 from bb_friction_ros.discrepancy.synthetic import draw_effect, synthesize
-from bb_friction_ros.empirical_terms import make_term, TermSet
+from bb_friction_ros.discrepancy.workflow import analyse, summary_of, usable
+from bb_friction_ros.empirical_terms import filter_lag_s, make_term, TermSet
 from bb_friction_ros.replay import replay
 
 from .test_discrepancy_inputs import run_cli
 from .test_discrepancy_measured import write_csv
+
+SETTINGS = DiscrepancySettings()
 
 
 @pytest.fixture(scope="module")
@@ -133,3 +143,239 @@ def test_reused_prediction_with_terms_needs_their_config(base, tmp_path, capsys)
     assert run_cli([pred, "--config", aug, "--out", tmp_path / "kept", "--no-plots"]) == 0
     kept = yaml.safe_load((tmp_path / "kept" / "augmented.yaml").read_text())
     assert kept["empirical_terms"][:2] == yaml.safe_load(aug.read_text())["empirical_terms"]
+
+
+# --- issue 19, item 4: the motor current as the measurement -------------------------------
+
+K_NM_PER_A = 0.0625
+
+
+def _current_csv(path, rec, with_torque=False):
+    extra = {"motor_current_a": rec.torque_meas_nm / K_NM_PER_A}
+    cols = ("t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n", "motor_current_a",
+            "torque_pred_nm") + (("torque_meas_nm",) if with_torque else ())
+    return write_csv(path, rec, columns=cols, extra=extra)
+
+
+def test_motor_current_with_a_torque_constant_is_the_measured_torque(pair, tmp_path):
+    fit, _, _ = pair
+    a = write_csv(tmp_path / "torque.csv", fit)
+    b = _current_csv(tmp_path / "current.csv", fit)
+    assert run_cli([a, "--out", tmp_path / "t", "--no-progress", "--no-plots"]) == 0
+    assert run_cli([b, "--out", tmp_path / "c", "--no-progress", "--no-plots",
+                    "--torque-constant-nm-per-a", K_NM_PER_A]) == 0
+    st = json.loads((tmp_path / "t" / "summary.json").read_text())
+    sc = json.loads((tmp_path / "c" / "summary.json").read_text())
+    assert [e["name"] for e in sc["effects"]] == [e["name"] for e in st["effects"]]
+    assert sc["rmse_after_nm"] == pytest.approx(st["rmse_after_nm"], rel=1e-9)
+    said = "motor_current_a x 0.0625 N m/A (--torque-constant-nm-per-a)"
+    assert said in sc["input"]["measured_torque_source"]
+    assert said in (tmp_path / "c" / "report.md").read_text()
+
+
+@pytest.mark.parametrize("case,argv,needle", [
+    ("current without a constant", [], "needs the motor's torque constant, "
+     "--torque-constant-nm-per-a K"),
+    ("constant without a current column", ["--torque-constant-nm-per-a", "0.1"],
+     "--torque-constant-nm-per-a was given but the CSV has no motor_current_a"),
+    ("zero constant", ["--torque-constant-nm-per-a", "0"],
+     "--torque-constant-nm-per-a: must be a finite torque constant > 0"),
+    ("NaN constant", ["--torque-constant-nm-per-a", "nan"],
+     "--torque-constant-nm-per-a: must be a finite torque constant > 0"),
+])
+def test_current_input_errors_name_the_flag(pair, tmp_path, capsys, case, argv, needle):
+    fit, _, _ = pair
+    if "column" in case:
+        f = write_csv(tmp_path / "torque.csv", fit)
+    else:
+        f = _current_csv(tmp_path / "current.csv", fit)
+    assert run_cli([f, "--out", tmp_path / "o", "--no-progress", "--no-plots", *argv]) == 2
+    assert needle in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("storage", ["sqlite3", "mcap"])
+def test_bag_motor_current_topic(base, tmp_path, capsys, storage):
+    """A bag with nut_state, axial_load and a std_msgs/Float64 motor_current topic."""
+    # the project's own writer and message builders, plus one foreign topic
+    from bb_friction_ros.bags import _header, _wrench, BagWriter, KIND_TYPES, Topics
+    rng = np.random.default_rng(3)
+    r = base.recording
+    hidden = TermSet([make_term("seal_drag", {"torque_nm": 0.03})])
+    meas = r.torque_pred_nm + hidden.torque_nm(r.t_run_s, r.nut_angle_rad,
+                                               r.nut_velocity_rad_s, r.axial_load_n)
+    meas = meas + rng.normal(0.0, 0.003, len(r))
+    bag = tmp_path / "bag"
+    topics = Topics()
+    with BagWriter(bag, storage=storage) as out:
+        st = out.store
+        conns = {k: out.connection(topics.absolute(k), t) for k, t in KIND_TYPES.items()
+                 if k != "measured_torque"}
+        cur = out.connection("/motor_current", "std_msgs/msg/Float64")
+        k = 0
+        for ev in base.events:
+            if ev.kind == "nut_state":
+                msg = st.types["sensor_msgs/msg/JointState"](
+                    header=_header(st, ev.stamp_s), name=list(ev.names),
+                    position=np.asarray(ev.positions, float),
+                    velocity=np.asarray(ev.velocities, float), effort=np.zeros(0))
+                out.write(conns["nut_state"], int(round(ev.stamp_s * 1e9)), msg)
+                out.write(cur, int(round(ev.stamp_s * 1e9)),
+                          st.types["std_msgs/msg/Float64"](data=float(meas[k] / K_NM_PER_A)))
+                k += 1
+            elif ev.kind == "axial_load":
+                out.write(conns["axial_load"], int(round(ev.stamp_s * 1e9)),
+                          _wrench(st, ev.stamp_s, force_z=ev.value))
+    assert run_cli([bag, "--out", tmp_path / "o", "--no-progress", "--no-plots",
+                    "--torque-constant-nm-per-a", K_NM_PER_A]) == 0
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert [e["name"] for e in s["effects"]] == ["seal_drag"]
+    assert s["effects"][0]["params"]["torque_nm"] == pytest.approx(0.03, rel=0.05)
+    assert "topic motor_current (motor current) x 0.0625 N m/A" in \
+        s["input"]["measured_torque_source"]
+    assert run_cli([bag, "--out", tmp_path / "p", "--no-progress", "--no-plots",
+                    "--torque-constant-nm-per-a", K_NM_PER_A, "--current-topic", "amps"]) == 2
+    err = capsys.readouterr().err
+    assert "no motor current: topic /amps is missing" in err and "--current-topic" in err
+
+
+# --- issue 19, items 1-3: the cut-off from the data, the refit, the rigid-body reference -----
+
+def test_cutoff_chosen_from_the_data_at_2_khz(tmp_path):
+    """
+    Servo moves with sharp acceleration edges, recorded at 2 kHz: the fixed 10 Hz filter
+    removed half the reducible gap (J 17 % high); the chosen cut-off removes >= 80 %.
+    """
+    rec, _ = servo_recording(2000.0, 10.0)
+    drive = Drive()
+    chosen = analyse(rec, SETTINGS)
+    fixed = analyse(rec, dataclasses.replace(SETTINGS, accel_cutoff_hz=10.0))
+    s = summary_of(chosen)
+    acc = s["acceleration"]
+    assert acc["chosen_by"].startswith("blocked cross-validation")
+    assert len(acc["candidates"]) == SETTINGS.accel_cutoff_grid_points
+    assert acc["cutoff_hz"] == max(c["cutoff_hz"] for c in acc["candidates"]
+                                   if c["cv_mse_nm2"] == min(d["cv_mse_nm2"]
+                                                             for d in acc["candidates"]))
+    assert acc["cutoff_hz"] <= SETTINGS.accel_max_cutoff_fraction * 2000.0 + 1e-9
+    assert acc["live_lag_s"] == pytest.approx(filter_lag_s(acc["cutoff_hz"]))
+    j = {e["name"]: e["params"] for e in s["effects"]}["inertia"]
+    assert j["j_kg_m2"] == pytest.approx(drive.j_kg_m2, rel=0.05)
+    assert j["accel_cutoff_hz"] == acc["cutoff_hz"]          # travels to augmented.yaml
+
+    def removed(a):
+        return (a.rmse_before_nm - a.rmse_after_nm) / (a.rmse_before_nm - drive.noise_nm)
+    assert removed(chosen) >= 0.8 > removed(fixed) + 0.2
+    assert summary_of(fixed)["acceleration"]["chosen_by"] == "settings (accel_cutoff_hz)"
+
+
+def test_10_hz_log_runs_with_a_reported_cutoff(tmp_path):
+    """A 10 Hz log of the same drive: a cut-off <= 2 Hz and the report says what it means."""
+    rec, _ = servo_recording(10.0, 60.0)
+    a = write_csv(tmp_path / "log10.csv", rec)
+    assert run_cli([a, "--out", tmp_path / "o", "--no-progress"]) == 0
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    acc = s["acceleration"]
+    assert acc["sample_rate_hz"] == pytest.approx(10.0)
+    assert acc["cutoff_hz"] <= 2.0 + 1e-9
+    # either not identifiable at all, or bandwidth-limited: never silently "resolved"
+    assert (not acc["inertia_identifiable"]) or acc["bandwidth_limited"]
+    report = (tmp_path / "o" / "report.md").read_text()
+    assert "Inertia cannot be identified here" in report or "Bandwidth-limited" in report
+
+
+def test_clean_recording_without_inertia_says_inertia_untested(base):
+    rng = np.random.default_rng(2)
+    rec, _ = synthesize(base, TermSet([draw_effect("seal_drag", rng)]), 0.004, rng)
+    a = analyse(rec, SETTINGS)
+    s = summary_of(a)
+    assert not s["acceleration"]["inertia_identifiable"]
+    assert "inertia" in a.untested and "inertia" not in a.terms.names
+
+
+def test_cutoff_above_the_safe_limit_is_refused_naming_the_key(pair, tmp_path, capsys):
+    fit, _, _ = pair                       # 50 Hz: the highest safe cut-off is 10 Hz
+    a = write_csv(tmp_path / "a.csv", fit)
+    settings = tmp_path / "s.yaml"
+    settings.write_text("discrepancy:\n  accel_cutoff_hz: 30\n")
+    assert run_cli([a, "--out", tmp_path / "o", "--settings", settings,
+                    "--no-progress"]) == 2
+    out = capsys.readouterr().out
+    assert "discrepancy.accel_cutoff_hz: 30 Hz is above the highest safe cut-off" in out
+    assert "Nyquist 25 Hz" in out
+
+
+def test_written_terms_are_a_fit_on_all_usable_samples(pair):
+    """Issue 19 item 2: augmented.yaml gets the chosen terms refitted on every sample."""
+    fit, _, _ = pair
+    a = analyse(fit, SETTINGS)
+    assert a.terms.names == a.terms_fit_part.names and len(a.terms)
+    x = inputs_of(a.recording)
+    members = []
+    for t in a.terms.terms:
+        fixed = tuple(sorted((k, getattr(t.params, k)) for k in t.kind.fixed))
+        nl = getattr(t.params, t.kind.nonlinear) if t.kind.nonlinear else None
+        members.append((Candidate(t.name, t.kind.linear, fixed=fixed), nl))
+    cols = np.hstack([c.columns(x, nl) for c, nl in members])
+    coef, *_ = np.linalg.lstsq(cols, a.residual_nm, rcond=None)
+    written = [v for t in a.terms.terms for v in (getattr(t.params, k) for k in t.kind.linear)]
+    assert np.allclose(written, coef, rtol=1e-7, atol=0)
+    part = [v for t in a.terms_fit_part.terms
+            for v in (getattr(t.params, k) for k in t.kind.linear)]
+    assert not np.allclose(part, coef, rtol=1e-7, atol=0)      # the split fit differs
+    s = summary_of(a)
+    assert s["refit"]["refitted"] and s["refit"]["samples"] == len(a.recording)
+
+
+def test_rigid_body_reference_on_the_held_out_part_and_the_validation(pair, tmp_path):
+    fit, val, _ = pair
+    a = write_csv(tmp_path / "fit.csv", fit)
+    b = write_csv(tmp_path / "val.csv", val)
+    assert run_cli([a, "--validate", b, "--out", tmp_path / "o", "--no-progress"]) == 0
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    # recomputed here: OLS on [alpha, omega, sign omega, 1] with the run's alpha
+    spec = {"accel_cutoff_hz": s["acceleration"]["cutoff_hz"]}
+    rec, _ = with_acceleration(fit, SETTINGS, spec)
+    rec = rec.take(usable(rec)[0])
+    n_fit = int(np.floor(0.7 * len(rec)))
+    w, al = rec.nut_velocity_rad_s, rec.nut_accel_rad_s2
+    cols = np.column_stack([al, w, np.sign(w), np.ones_like(w)])
+    r = rec.torque_meas_nm - rec.torque_pred_nm
+    coef, *_ = np.linalg.lstsq(cols[:n_fit], r[:n_fit], rcond=None)
+    e = r[n_fit:] - cols[n_fit:] @ coef
+    h = s["heldout"]
+    assert h["reference_relative_error"] == pytest.approx(
+        np.linalg.norm(e) / np.linalg.norm(rec.torque_meas_nm[n_fit:]), rel=1e-9)
+    v = s["validation"]
+    assert {"relative_error_after", "reference_relative_error"} <= set(v)
+    coef_all, *_ = np.linalg.lstsq(cols, r, rcond=None)
+    vrec, _ = with_acceleration(val, SETTINGS, spec)
+    vrec = vrec.take(usable(vrec)[0])
+    vw = vrec.nut_velocity_rad_s
+    vcols = np.column_stack([vrec.nut_accel_rad_s2, vw, np.sign(vw), np.ones_like(vw)])
+    ve = vrec.torque_meas_nm - vrec.torque_pred_nm - vcols @ coef_all
+    assert v["reference_relative_error"] == pytest.approx(
+        np.linalg.norm(ve) / np.linalg.norm(vrec.torque_meas_nm), rel=1e-9)
+    report = (tmp_path / "o" / "report.md").read_text()
+    assert "rigid-body reference" in report
+    assert (v["relative_error_after"] > v["reference_relative_error"]) == \
+        report.startswith("# Discrepancy report\n\n**Warning:**")
+
+
+def test_worse_than_the_reference_is_said_first(pair, tmp_path):
+    """
+    Limited to one term (max_terms: 1), the workflow cannot take both hidden effects, viscous
+    drag and inertia; the four-parameter reference can: the report's first line says so.
+    """
+    fit, val, _ = pair
+    a = write_csv(tmp_path / "fit.csv", fit)
+    b = write_csv(tmp_path / "val.csv", val)
+    settings = tmp_path / "s.yaml"
+    settings.write_text("discrepancy:\n  max_terms: 1\n")
+    assert run_cli([a, "--validate", b, "--out", tmp_path / "o", "--settings", settings,
+                    "--no-progress", "--no-plots"]) == 0
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    v = s["validation"]
+    assert v["relative_error_after"] > v["reference_relative_error"]
+    assert s["warnings"][0].startswith("on the validation recording the workflow is WORSE")
+    lines = (tmp_path / "o" / "report.md").read_text().splitlines()
+    assert lines[2].startswith("**Warning:** on the validation recording the workflow is WORSE")
