@@ -163,7 +163,7 @@ class Schedule:
     step_inputs: np.ndarray   # (k, 4): stamp, nut angle, nut velocity, axial load
     run_start: np.ndarray     # (k,) bool: the runner reset before this step
     answer: np.ndarray        # (n,) index of the step whose state answers sample i; -1: none
-    model_rate_hz: float
+    runner_args: tuple        # (model_rate_hz, model_step_deg, max_model_step_deg)
 
 
 @dataclasses.dataclass
@@ -177,19 +177,25 @@ class TrialRun:
     wall_s: float
 
 
-def _runner(config_path, overrides, model_rate_hz):
+def runner_args(replay_settings):
+    """Return the runner's schedule settings of a NodeParameters, as the replay path uses."""
+    return (float(replay_settings.model_rate_hz), float(replay_settings.model_step_deg),
+            float(replay_settings.max_model_step_deg))
+
+
+def _runner(config_path, overrides, args):
     """Build a ModelRunner of the physics alone (no empirical terms) at ``overrides``."""
     from bb_friction_ros.ball_screw.whole_screw import WholeScrew
     from bb_friction_ros.model_file import load_ball_screw
     from bb_friction_ros.runner import ModelRunner
     cfg = load_ball_screw(config_path, overrides)
-    runner = ModelRunner(WholeScrew(cfg), model_rate_hz)
+    runner = ModelRunner(WholeScrew(cfg), *args)
     # as build_runner: the same warm-up, so the runs equal the replay path's
     runner.warm_up(cfg.operation.axial_load_n, cfg.operation.nut_velocity_rad_s)
     return runner
 
 
-def base_run(rec, config_path, model_rate_hz):
+def base_run(rec, config_path, args):
     """
     Run every sample of ``rec`` through the runner at the base config: the schedule and T(p0).
 
@@ -198,7 +204,7 @@ def base_run(rec, config_path, model_rate_hz):
     """
     from bb_friction_ros.runner import InputSample
     t0 = time.perf_counter()
-    runner = _runner(config_path, None, model_rate_hz)
+    runner = _runner(config_path, None, args)
     n = len(rec)
     answer = np.full(n, -1, dtype=np.int64)
     total, b2b = np.full(n, np.nan), np.full(n, np.nan)
@@ -220,11 +226,11 @@ def base_run(rec, config_path, model_rate_hz):
         answer[i] = len(steps) - 1
         total[i], b2b[i], conv[i] = p.torque_total_nm, p.torque_b2b_nm, p.converged
     sched = Schedule(np.array(steps, dtype=float).reshape(-1, 4), np.array(starts, bool),
-                     answer, float(model_rate_hz))
+                     answer, tuple(args))
     return sched, TrialRun(math.nan, total, b2b, conv, time.perf_counter() - t0)
 
 
-def step_run(config_path, overrides, step_inputs, run_start, model_rate_hz):
+def step_run(config_path, overrides, step_inputs, run_start, args):
     """
     Run the runner over the stepping samples only; return (total, b2b, converged) per step.
 
@@ -233,7 +239,7 @@ def step_run(config_path, overrides, step_inputs, run_start, model_rate_hz):
     so that Dask workers can run it.
     """
     from bb_friction_ros.runner import InputSample
-    runner = _runner(config_path, overrides, model_rate_hz)
+    runner = _runner(config_path, overrides, args)
     k = len(step_inputs)
     total, b2b = np.full(k, np.nan), np.full(k, np.nan)
     conv = np.zeros(k, dtype=bool)
@@ -263,11 +269,11 @@ class TrialRunner:
     worker processes (started on first use, closed by ``close``).
     """
 
-    def __init__(self, rec, config_path, model_rate_hz, workers=1):
+    def __init__(self, rec, config_path, args, workers=1):
         """Make the base run (the schedule and T(p0)) over ``rec``."""
         self.config_path = str(config_path)
         self.workers = int(workers)
-        self.schedule, self.base = base_run(rec, config_path, model_rate_hz)
+        self.schedule, self.base = base_run(rec, config_path, args)
         self.runs = 1
         self.wall_s = self.base.wall_s
         self._client = None
@@ -299,11 +305,11 @@ class TrialRunner:
             steps = client.scatter(sched.step_inputs, broadcast=True)
             starts = client.scatter(sched.run_start, broadcast=True)
             futures = [client.submit(step_run, self.config_path, k.override(v), steps, starts,
-                                     sched.model_rate_hz, pure=False) for k, v in trials]
+                                     sched.runner_args, pure=False) for k, v in trials]
             results = client.gather(futures)
         else:
             results = [step_run(self.config_path, k.override(v), sched.step_inputs,
-                                sched.run_start, sched.model_rate_hz) for k, v in trials]
+                                sched.run_start, sched.runner_args) for k, v in trials]
         wall = time.perf_counter() - t0
         self.runs += len(trials)
         self.wall_s += wall
@@ -328,7 +334,7 @@ class PhysicsContext:
     """What the physical candidates need besides the recording: the model and its rate."""
 
     config_path: object
-    model_rate_hz: float
+    runner_args: tuple        # runner_args(replay settings): the replay path's schedule
     settings: PhysicalSettings = PhysicalSettings()
 
 
@@ -458,7 +464,7 @@ def select_with_physics(physics, rec_all, ok, fit_mask, r, x_fit, settings, skip
                        run, None if delta is None else d_fit)
 
     none = outcome(None, None, None)
-    runner = TrialRunner(rec_all, physics.config_path, physics.model_rate_hz, ps.workers)
+    runner = TrialRunner(rec_all, physics.config_path, physics.runner_args, ps.workers)
     search = PhysicalSearch(workers=ps.workers, base=runner.base, usable=ok,
                             none_score=none.score)
     try:

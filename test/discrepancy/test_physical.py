@@ -19,6 +19,7 @@ from bb_friction_ros.empirical_terms import TermSet
 from bb_friction_ros.node_parameters import NodeParameters
 
 MODEL_RATE_HZ = 50.0
+RUNNER = ph.runner_args(NodeParameters(model_rate_hz=MODEL_RATE_HZ))
 # Issue 21's targets for a hidden parameter
 THETA_TOLERANCE_DEG = 0.3
 MU_RELATIVE_TOLERANCE = 0.05
@@ -42,7 +43,7 @@ def test_trial_runs_are_the_replay_path(cache):
     """The base run and a run at a trial value equal the replay path's prediction exactly."""
     hidden = {"errors": {"theta_amplitude_deg": 2.5}}
     rec, cfg, _ = case(cache, hidden)
-    trials = ph.TrialRunner(rec, cfg, MODEL_RATE_HZ)
+    trials = ph.TrialRunner(rec, cfg, RUNNER)
     # the base run is the recording's own prediction (the replay path at the given config)
     assert np.array_equal(trials.base.total_nm, rec.torque_pred_nm)
     # step-only runs: at the config's own value, and at the hidden one, whose replay-path
@@ -73,7 +74,7 @@ def analyse_physical(rec, cfg, settings=DiscrepancySettings()):
     r = recu.torque_meas_nm - recu.torque_pred_nm
     noise = regimes.noise_model(r, settings.noise_max_lag, settings.noise_plateau_ratio,
                                 recu.nut_velocity_rad_s, recu.t_s)
-    return ph.select_with_physics(ph.PhysicsContext(cfg, MODEL_RATE_HZ), rec_all, ok,
+    return ph.select_with_physics(ph.PhysicsContext(cfg, RUNNER), rec_all, ok,
                                   fit_mask, r, x_fit, settings, tuple(untested),
                                   {"inertia": spec}, noise.tau)
 
