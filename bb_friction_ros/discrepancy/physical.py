@@ -189,7 +189,8 @@ def _runner(config_path, overrides, args):
     from bb_friction_ros.model_file import load_ball_screw
     from bb_friction_ros.runner import ModelRunner
     cfg = load_ball_screw(config_path, overrides)
-    runner = ModelRunner(WholeScrew(cfg), *args)
+    rate, step_deg, max_step_deg = args
+    runner = ModelRunner(WholeScrew(cfg), rate, None, step_deg, max_step_deg)
     # as build_runner: the same warm-up, so the runs equal the replay path's
     runner.warm_up(cfg.operation.axial_load_n, cfg.operation.nut_velocity_rad_s)
     return runner
