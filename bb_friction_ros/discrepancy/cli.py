@@ -51,6 +51,10 @@ def add_discrepancy_parser(subparsers):
     p.add_argument("--current-topic", default="motor_current",
                    help="bag topic of the motor current (std_msgs/Float64 or Float32, A; "
                    "log time as stamp), read with --torque-constant-nm-per-a")
+    p.add_argument("--physical", action="store_true",
+                   help="also try the model's own parameters (contact-angle deviation, friction "
+                        "coefficient, preload) as candidates: ~15-20 model runs over the "
+                        "recording (issue 21; settings discrepancy.physical)")
     p.add_argument("--no-plots", action="store_true", help="write no PNG figures")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--json", action="store_true", help="print summary.json to stdout")
@@ -65,6 +69,10 @@ def run_discrepancy_command(args):
     from bb_friction_ros.discrepancy.workflow import run_discrepancy
     from bb_friction_ros.node_parameters import NodeParameters
     settings = load_settings(args.settings)
+    if args.physical:
+        import dataclasses
+        settings = dataclasses.replace(settings, physical=dataclasses.replace(
+            settings.physical, enabled=True))
     replay_settings = NodeParameters(nut_joint=args.nut_joint,
                                      model_rate_hz=args.model_rate_hz)
     try:

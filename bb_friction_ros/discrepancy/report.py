@@ -11,8 +11,8 @@ import math
 
 import numpy as np
 
+from bb_friction_ros.discrepancy import physical
 from bb_friction_ros.discrepancy.data import inputs_of
-from bb_friction_ros.empirical_terms import LIBRARY
 
 # Points per scatter panel: beyond a few thousand a scatter shows no more and costs seconds
 # per figure (a 25,000-sample recording); an even stride keeps every regime.
@@ -53,7 +53,7 @@ def _effects_table(summary):
     out = ["| term | meaning | parameters |", "|---|---|---|"]
     for e in summary["effects"]:
         params = ", ".join(f"{k} = {v:.4g} {e['units'][k]}" for k, v in e["params"].items())
-        out.append(f"| `{e['name']}` | {LIBRARY[e['name']].meaning} | {params} |")
+        out.append(f"| `{e['name']}` | {physical.meaning(e)} | {params} |")
     return out
 
 
@@ -116,6 +116,7 @@ def write_report(out, a, summary, plots=True, validation=None):
     if a.untested:
         lines += ["", "Not tested on this recording:", ""]
         lines += [f"- `{k}`: {v}" for k, v in a.untested.items()]
+    lines += physical.report_lines(a, summary)        # issue 21: the model's own parameters
     lines += ["", "Selection (best subset per size, fit part):", ""] + _trace_table(a.trace)
     lines += ["", "## Where the model disagreed (all samples, before)", ""]
     flagged = [r for r in a.regions_before if r["significant"]]
@@ -144,6 +145,8 @@ def write_report(out, a, summary, plots=True, validation=None):
         if validation is not None:
             plot_validation(out, validation)
             figures.append(VALIDATION_FIGURE)
+        if physical.chosen(a.physical):
+            figures.append(physical.plot_b2b_share(out, a))
         lines += ["", "## Figures", ""] + [f"![{f}]({f})" for f in figures]
     (out / "report.md").write_text("\n".join(lines) + "\n")
 

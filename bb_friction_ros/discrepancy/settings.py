@@ -8,6 +8,7 @@ out-of-range value is refused with the dotted key, like every other config of th
 import dataclasses
 
 from bb_friction_ros.config import field, from_mapping, load_section
+from bb_friction_ros.discrepancy.physical import PhysicalSettings
 from bb_friction_ros.empirical_terms import (MAX_LEAD_HARMONICS, MAX_RIPPLE_HARMONICS,
                                              MAX_STROKE_ORDER)
 
@@ -125,6 +126,8 @@ class DiscrepancySettings:
     flag_min_bias_fraction: float = field(
         0.25, "1", "and when it exceeds this fraction of the noise std (relevance, not only "
         "significance)", lo=0.0)
+    # --- the model's own parameters as candidates (issue 21; physical.py) -------------------
+    physical: PhysicalSettings = dataclasses.field(default_factory=PhysicalSettings)
 
 
 def load_settings(path=None):

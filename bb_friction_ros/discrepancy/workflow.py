@@ -31,12 +31,12 @@ import math
 import numpy as np
 
 from bb_friction_ros.config import BBFrictionError
-from bb_friction_ros.discrepancy import regimes
+from bb_friction_ros.discrepancy import physical, regimes
 from bb_friction_ros.discrepancy.bandwidth import (acceleration_filter_of, choose_cutoff,
                                                    with_acceleration)
 from bb_friction_ros.discrepancy.data import inputs_of
 from bb_friction_ros.discrepancy.reference import RigidBody
-from bb_friction_ros.discrepancy.selection import (ambiguities, candidates, refit_all, select,
+from bb_friction_ros.discrepancy.selection import (ambiguities, candidates, refit_all,
                                                    to_termset)
 from bb_friction_ros.empirical_terms import filter_lag_s, TermSet
 from bb_friction_ros.model_file import physics_of, read_model_file, write_model_file
@@ -175,11 +175,12 @@ class Analysis:
     accel_choice: object = None        # bandwidth.CutoffChoice (None: the CSV's column)
     reference: object = None           # reference.RigidBody fitted on all usable samples
     heldout: dict = None               # summary.json["heldout"]: workflow and reference
+    physical: object = None            # physical.PhysicalSearch (issue 21; None: not run)
 
     @property
     def verdict(self):
         """Return "found" when terms were selected (and improve the held-out part)."""
-        return "found" if len(self.terms) else "none"
+        return "found" if len(self.terms) or physical.chosen(self.physical) else "none"
 
 
 def _rms(a):
@@ -200,8 +201,12 @@ def usable(rec):
     return ok, dropped
 
 
-def analyse(rec, settings):
-    """Run steps 0-3 and 5 on a Recording; raise InsufficientData when it cannot tell."""
+def analyse(rec, settings, physics=None):
+    """
+    Run steps 0-3 and 5 on a Recording; raise InsufficientData when it cannot tell.
+
+    ``physics`` (a physical.PhysicsContext): the model's own parameters are candidates too.
+    """
     choice = choose_cutoff(rec, settings, usable)
     rec, spec = with_acceleration(rec, settings, choice and {"accel_cutoff_hz":
                                                              choice.cutoff_hz})
@@ -217,7 +222,7 @@ def analyse(rec, settings):
         else:
             what = "no sample with both a measured torque and a converged prediction"
         raise InsufficientData([what])
-    rec = rec.take(ok)
+    rec_in, rec = rec, rec.take(ok)      # every input sample drives a physical trial's model
     n = len(rec)
     n_fit = int(math.floor((1.0 - settings.holdout_fraction) * n))
     fit_mask = np.zeros(n, dtype=bool)
@@ -237,24 +242,28 @@ def analyse(rec, settings):
     noise = regimes.noise_model(r, settings.noise_max_lag, settings.noise_plateau_ratio,
                                 rec.nut_velocity_rad_s, rec.t_s)
     fixed = {"inertia": spec} if spec else {}
-    terms, trace, ctx = select(x_fit, r[fit_mask], settings, skip=tuple(untested),
-                               fixed=fixed, tau=noise.tau)
-    ambiguous = ambiguities(ctx, x_fit, r[fit_mask], settings) if len(terms) else []
+    terms, trace, ctx, search = physical.select(physics, rec_in, ok, fit_mask, r, x_fit,
+                                                settings, tuple(untested), fixed, noise.tau)
+    shift = physical.shift_nm(search, n)      # the chosen physical change (issue 21), or 0
+    ambiguous = ambiguities(ctx, x_fit, (r - shift)[fit_mask], settings) if len(terms) else []
+    ambiguous += search.identifiability if physical.chosen(search) else []
     x = inputs_of(rec)
     hold = ~fit_mask
     rejected = None
-    added = terms.torque_nm(x.t_s, x.nut_angle_rad, x.nut_velocity_rad_s, x.axial_load_n,
-                            x.nut_accel_rad_s2) if len(terms) else np.zeros(n)
-    if len(terms) and not _rms((r - added)[hold]) < _rms(r[hold]):
+    added = shift + (terms.torque_nm(x.t_s, x.nut_angle_rad, x.nut_velocity_rad_s,
+                                     x.axial_load_n, x.nut_accel_rad_s2)
+                     if len(terms) else np.zeros(n))
+    if (len(terms) or physical.chosen(search)) and not _rms((r - added)[hold]) < _rms(r[hold]):
         # selected on the fit part but no better on the held-out part (e.g. a recording
         # whose two halves disagree): not an effect this recording supports
-        rejected, terms, added = terms, TermSet(), np.zeros(n)
+        rejected, terms, added, shift = terms, TermSet(), np.zeros(n), np.zeros(n)
+        physical.reject(search)
         ambiguous = []
     after = r - added
     bins = regimes.make_bins(x, settings)
     x_hold = inputs_of(rec, hold)
     tau = noise.tau
-    written, refit = refit_terms(ctx, terms, x, r)
+    written, refit = refit_terms(ctx, terms, x, r - shift)
     reference, heldout = reference_rows(rec, x, r, fit_mask, after)
     return Analysis(
         rec, fit_mask, r, added, noise.std_nm, written, trace, untested, bins,
@@ -263,7 +272,7 @@ def analyse(rec, settings):
         regimes.regime_table(bins, x_hold, r[hold], noise.std_nm, settings, tau),
         regimes.regime_table(bins, x_hold, after[hold], noise.std_nm, settings, tau),
         _rms(r[hold]), _rms(after[hold]), dropped, noise, spec, ambiguous, rejected,
-        terms, refit, choice, reference, heldout)
+        terms, refit, choice, reference, heldout, search)
 
 
 def refit_terms(ctx, terms, x, r):
@@ -321,7 +330,8 @@ def summary_of(a, info=None):
     regions = [_region(row) for row in a.regions_before if row["significant"]]
     remaining = [_region(row) for row in a.regions_after if row["significant"]]
     if a.verdict == "found":
-        reason = (f"{', '.join(a.terms.names)} explain(s) the residual: held-out RMSE "
+        reason = (f"{', '.join(physical.names(a.physical, a.terms))} explain(s) the residual: "
+                  f"held-out RMSE "
                   f"{a.rmse_before_nm:.4g} -> {a.rmse_after_nm:.4g} N m (noise "
                   f"{a.noise_nm:.3g} N m)")
     elif a.rejected_terms is not None:
@@ -343,7 +353,8 @@ def summary_of(a, info=None):
     out = {
         "verdict": a.verdict,
         "reason": reason,
-        "effects": a.terms.effects(),
+        "effects": physical.effects(a.physical, a.terms),
+        "physical": physical.summary(a.physical),
         "ambiguities": a.ambiguities,
         "rmse_before_nm": a.rmse_before_nm,
         "rmse_after_nm": a.rmse_after_nm,
@@ -425,7 +436,7 @@ AUGMENTED_HEADER = (
     "# empirical_terms to the physics prediction as a separate part.\n")
 
 
-def write_augmented(path, config_path, terms, zero_baseline=False):
+def write_augmented(path, config_path, terms, zero_baseline=False, physical_search=None):
     """
     Write ``augmented.yaml``: the base ``ball_screw`` mapping plus ``empirical_terms``.
 
@@ -433,9 +444,11 @@ def write_augmented(path, config_path, terms, zero_baseline=False):
     With a zero baseline the terms are the whole torque: the file says ``physics: none``, so
     replay and the node predict with the terms alone (issue 23, finding 3: adding them to the
     ball-screw model counted the friction twice), and no base term is kept (the zero
-    prediction held none).
+    prediction held none).  A chosen physical effect (issue 21) sets its value in
+    ``ball_screw:``.
     """
     base, existing = read_model_file(config_path)
+    base = physical.calibrated_section(base, physical_search)
     physics = physics_of(config_path)
     note = ""
     if zero_baseline:
@@ -474,10 +487,12 @@ def validate(a, rec, settings):
     if not ok.any():
         raise InsufficientData([f"validation recording {rec.info.get('input', '?')}: no "
                                 f"usable sample (dropped: {dropped})"])
+    shift = physical.validation_shift(a.physical, rec, ok)     # a chosen physical change
     rec = rec.take(ok)
     x = inputs_of(rec)
-    added = a.terms.torque_nm(x.t_s, x.nut_angle_rad, x.nut_velocity_rad_s, x.axial_load_n,
-                              x.nut_accel_rad_s2) if len(a.terms) else np.zeros(len(rec))
+    added = shift + (a.terms.torque_nm(x.t_s, x.nut_angle_rad, x.nut_velocity_rad_s,
+                                       x.axial_load_n, x.nut_accel_rad_s2)
+                     if len(a.terms) else np.zeros(len(rec)))
     meas, pred = rec.torque_meas_nm, rec.torque_pred_nm
     norm = float(np.linalg.norm(meas))
 
@@ -571,7 +586,12 @@ def run_discrepancy(input_path, out, config=None, settings=None, replay_settings
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     try:
-        a = analyse(rec, settings)
+        physics = None          # the model's own parameters as candidates (issue 21)
+        if settings.physical.enabled and rec.info.get("baseline") != "zero" \
+                and physics_of(config) == "ball_screw":
+            physics = physical.PhysicsContext(config, physical.runner_args(
+                load["replay_settings"]), settings.physical)
+        a = analyse(rec, settings, physics)
         v = validate(a, rec2, settings) if rec2 is not None else None
     except InsufficientData as exc:
         summary = insufficient_summary(exc, rec.info)
@@ -579,7 +599,8 @@ def run_discrepancy(input_path, out, config=None, settings=None, replay_settings
         write_insufficient_report(out, summary)
         return 2, summary
     augmented = write_augmented(out / "augmented.yaml", config, a.terms,
-                                zero_baseline=rec.info.get("baseline") == "zero")
+                                zero_baseline=rec.info.get("baseline") == "zero",
+                                physical_search=a.physical)
     summary = summary_of(a, rec.info)
     summary["augmented_config"] = str(augmented)
     summary["base_config"] = str(config)
