@@ -353,7 +353,6 @@ def test_look_ahead_is_spaced_in_nut_angle_and_covers_the_schedule():
 
 def test_replay_of_a_bag_with_stamps_at_zero_follows_the_load_and_warns(tmp_path):
     """Issue 23, finding 2 in replay: header.stamp 0 on every message (log times advance)."""
-    import json
     from bb_friction_ros.bags import Event, write_events
     from bb_friction_ros.replay import replay
     w = 2 * math.pi
