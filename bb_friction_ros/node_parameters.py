@@ -36,6 +36,12 @@ class NodeParameters:
                             "oldest is dropped (newest wins)", lo=1, hi=100000)
     groups_rate_hz: float = field(10.0, "Hz", "contact-group status rate", lo=0.1, hi=1000.0)
     diagnostics_rate_hz: float = field(1.0, "Hz", "diagnostics rate", lo=0.1, hi=100.0)
+    input_timeout_s: float = field(1.0, "s", "diagnostics go to ERROR when no nut_state "
+                                   "arrived for this long", lo=0.01, hi=3600.0)
+    model_rate_tolerance: float = field(0.1, "1", "diagnostics WARN when the model stepped "
+                                        "less than (1 - this) times its configured floor "
+                                        "(diagnostic_updater's FrequencyStatus tolerance)",
+                                        lo=0.0, hi=0.9)
     max_axial_load_n: float = field(1.0e5, "N", "loads above this are rejected as absurd",
                                     lo=1.0, hi=1.0e7)
     reliable_qos: bool = field(False, None, "inputs with reliable QoS instead of the "
@@ -67,7 +73,8 @@ class NodeParameters:
 # Changeable while the node runs; a change of a MODEL_PARAMETERS one rebuilds the model.
 RUNTIME = frozenset({"nut_joint", "model_rate_hz", "groups_rate_hz", "max_axial_load_n",
                      "config_file", "max_answer_age_s", "profile_horizon_periods",
-                     "profile_points", "model_step_deg", "max_model_step_deg"})
+                     "profile_points", "model_step_deg", "max_model_step_deg",
+                     "input_timeout_s", "model_rate_tolerance"})
 MODEL_PARAMETERS = frozenset({"config_file", "model_rate_hz", "model_step_deg",
                               "max_model_step_deg"})
 FIELDS = {f.name: f for f in dataclasses.fields(NodeParameters)}

@@ -19,7 +19,8 @@ LAYERS = {
     1: {"config", "contact", "paper", "compiled", ""},   # "": the package's __init__
     2: {"linear_bearing", "ball_screw", "empirical_terms", "model_file"},
     3: {"runner", "live", "bags", "interface", "node_parameters", "feedforward"},
-    4: {"replay", "node", "node_entry", "harness", "pytest_plugin", "testing", "trajectories"},
+    4: {"replay", "node", "ros_inputs", "node_entry", "harness", "pytest_plugin", "testing",
+        "trajectories"},
     5: {"discrepancy", "sweep", "demo", "reproduce"},
     6: {"cli"},
 }

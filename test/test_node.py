@@ -269,16 +269,16 @@ def _write(path, content):
 def test_bad_config_file_at_runtime_is_refused_and_the_node_lives(ros_context, tmp_path):
     node = FrictionNode(context=ros_context)
     try:
-        runner = node._runner
+        runner = node.live.runner
         for name, (content, needle) in BAD_MODEL_FILES.items():
             path = _write(tmp_path / name, content)
             res = node.set_parameters([Parameter("config_file", value=str(path))])[0]
             assert not res.successful and needle in res.reason, (name, res.reason)
             assert node.get_parameter("config_file").value == ""
-            assert node._runner is runner         # nothing applied
+            assert node.live.runner is runner         # nothing applied
         good = _write(tmp_path / "good.yaml", "ball_screw:\n  track: {n_balls: 30}\n")
         assert node.set_parameters([Parameter("config_file", value=str(good))])[0].successful
-        assert node._runner is not runner         # applied after validation
+        assert node.live.runner is not runner         # applied after validation
     finally:
         node.destroy_node()
 
@@ -310,7 +310,7 @@ def test_model_rate_is_not_negative_after_a_runtime_rebuild(ros_context):
     node = FrictionNode(context=ros_context)
     try:
         for k in range(20):
-            node._runner.process(InputSample(0.01 * k, 0.06 * k, 6.0, 1500.0))
+            node.live.runner.process(InputSample(0.01 * k, 0.06 * k, 6.0, 1500.0))
         node.diagnostics_values()              # the rate window starts with 20 steps
         assert node.set_parameters([Parameter("model_rate_hz", value=50.0)])[0].successful
         values, _ = node.diagnostics_values()

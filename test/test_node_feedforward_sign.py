@@ -40,13 +40,13 @@ def test_velocity_noise_on_a_lagging_node_never_feeds_forward_against_the_motion
     probe = Probe(ros_context, {"queue_size": 100000}, runner=runner)
     answers = []
     node = probe.node
-    publish = node._answer
+    publish = node.live.outputs.answer
 
     def record(pred, *args):
         answers.append((pred.nut_velocity_rad_s, pred.feedforward_nm))
         return publish(pred, *args)
 
-    node._answer = record
+    node.live.outputs.answer = record
     try:
         probe.load(1500.0)
         n = 600

@@ -80,7 +80,7 @@ class Probe:
         self.node = FrictionNode(context=context, parameter_overrides=[
             Parameter(k, value=v) for k, v in params.items()])
         if runner is not None:
-            self.node._runner = runner
+            self.node.live.runner = runner
         self.io = Node("servo_probe", context=context)
         rel = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
         self.preds, self.ff, self.profiles, self.diags = [], [], [], []
@@ -139,7 +139,7 @@ def test_profile_published_at_every_model_step(ros_context):
         for k in range(60):
             probe.state(100.0 + k * 1e-3, w * k * 1e-3, w)
             # one sample at a time: the profile of a step is done before the next input
-            probe._until(lambda: probe.node._profile_seed is None and not probe.node._busy)
+            probe._until(lambda: probe.node.live.idle())
         probe._until(lambda: len(probe.profiles) >= 6)
         values = probe.node.diagnostics_values(advance=False)[0]
         assert values["model_steps"] == values["profiles"] == len(probe.profiles) == 6

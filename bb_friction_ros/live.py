@@ -1,0 +1,456 @@
+"""
+The live schedule of ``friction_node``, without ROS: who answers an input, and when.
+
+``node.py`` is a shell around this class: it takes messages off the wire and hands them in
+(``on_nut_state``, ``on_axial_load``), and hands in its publishers as functions
+(``Outputs``).  Everything between is here, so it is tested without DDS
+(``test/test_live.py``).
+
+Per-input path: a nut-state sample is validated (``runner.InputAssembler``); when no model
+step is due (most inputs: the model steps every ``model_step_deg`` of nut rotation, the
+inputs come at the controller's rate) it is answered at once from the latest model state, in
+the caller's thread.  A sample that is due a step (or arrives while one is running) goes to
+the model thread, which steps the whole-screw model (a numba kernel that releases the GIL,
+so the input thread keeps taking inputs), answers it and everything queued behind it in
+order, and then steps a copy of the state ahead for the look-ahead profile.  Every sample
+reaches the runner in arrival order, so the answers equal replay's exactly (the runner is
+the same).
+
+Answer age is bounded: an answer older than ``max_answer_age_s`` since the input was
+received by the middleware is not published but counted (``shed_inputs``); its sample still
+goes through the runner, so the model is not disturbed.  When the model itself falls behind
+(its queue spans a model period), a step due on a queued sample is not taken
+(``process(allow_step=False)``: the runner counts it and turns its schedule coarser); the
+newest sample steps.  Answers then differ from replay's, and diagnostics say so.
+
+Health (``status``), as diagnostic_updater's ``FrequencyStatus`` would judge it: ERROR when
+no nut_state arrived for ``input_timeout_s``; WARN when the model stepped less often than
+its configured floor allows (``model_rate_tolerance``), took coarser steps, shed, skipped,
+rejected or dropped inputs; OK otherwise.
+"""
+
+import collections
+from dataclasses import dataclass
+import math
+import os
+import threading
+import time
+from typing import Callable
+
+from bb_friction_ros.runner import InputError, look_ahead_profile
+
+# Levels of diagnostic_msgs/DiagnosticStatus (bytes there; plain ints here, no ROS).
+OK, WARN, ERROR = 0, 1, 2
+LEVEL_NAMES = {OK: "OK", WARN: "WARN", ERROR: "ERROR"}
+# The thread that answers, so a publisher may keep one reusable message per thread.
+INLINE, MODEL = 0, 1
+# How long the model thread waits for work before it looks at the stop flag again [s].
+IDLE_WAIT_S = 0.5
+
+
+@dataclass
+class Outputs:
+    """The node's publishers, handed in as functions (no ROS here)."""
+
+    # (pred, stamp, latency_s, thread): publish the prediction and the feedforward
+    answer: Callable
+    # (pred, stamp): publish the contact groups (on change, and on the node's timer)
+    groups: Callable
+    # (sample, stamp, angles, torques, converged): publish the look-ahead profile
+    profile: Callable
+    # (level, text) with level "info", "warning" or "error"
+    log: Callable
+
+
+class LiveSchedule:
+    """
+    The queue, the inline answers, the model thread, shedding, the profile and the counters.
+
+    ``runner`` (runner.ModelRunner) and ``assembler`` (runner.InputAssembler) are the same
+    objects replay uses; ``params`` is a node_parameters.NodeParameters.  ``clock_ns`` gives
+    the wall time the input's ``recv_ns`` is measured in (answer age).
+    """
+
+    def __init__(self, runner, assembler, params, outputs, clock_ns=time.time_ns,
+                 monotonic=time.monotonic):
+        """Keep the collaborators; ``start()`` starts the model thread."""
+        self.outputs = outputs
+        self._clock_ns = clock_ns
+        self._monotonic = monotonic
+        self._lock = threading.Lock()
+        self._wake = threading.Condition(self._lock)
+        self._queue = collections.deque(maxlen=params.queue_size)
+        self._busy = False          # the model thread owns the runner until it clears this
+        self._profile_seed = None
+        self._runner = runner
+        self._assembler = assembler
+        self._apply(params)
+        self._dropped = 0
+        self._shed = 0
+        self._received = collections.Counter()
+        self._published = 0
+        self._inline = 0
+        self._profiles = 0
+        self._profiles_abandoned = 0
+        self._profile_errors = 0
+        self._ff_held = 0
+        self._latest = None
+        self._latest_stamp = None
+        self._last_groups = None
+        self._notes = []            # one-off notes for the next status (a model rebuilt)
+        now = monotonic()
+        self._last_input = None     # monotonic time of the last nut_state received
+        self._t_start = now
+        # the status window: (monotonic time, model steps, shed, stalls, coarse, skipped)
+        # at the last report, and the accepted samples' stamps since
+        self._window = self._window_start(now)
+        self._resets_logged = (0, -math.inf)      # (resets, monotonic) at the last warning
+        self.ready = False
+        self._stop = False
+        self._thread = None
+
+    def _apply(self, params):
+        self._params = params
+        self._max_age_ns = int(params.max_answer_age_s * 1e9)
+        self._profile_shape = (params.profile_horizon_periods, params.profile_points)
+
+    def _window_start(self, now):
+        stats = self._runner.stats
+        return {"t": now, "steps": stats.model_steps, "shed": getattr(self, "_shed", 0),
+                "stalls": stats.stamp_stalls, "coarse": stats.coarse_steps,
+                "skipped": stats.skipped_steps, "resets": stats.resets, "first_stamp": None,
+                "last_stamp": None, "accepted": 0}
+
+    # --- life cycle -----------------------------------------------------------------------
+    def start(self):
+        """Start the model thread; the schedule is ready (model built and warm)."""
+        self._thread = threading.Thread(target=self._model_loop, name="friction_model",
+                                        daemon=True)
+        self._thread.start()
+        self.ready = True
+
+    def stop(self, timeout_s=5.0):
+        """Stop the model thread (a step in progress finishes first)."""
+        with self._lock:
+            self._stop = True
+            self._wake.notify_all()
+        if self._thread is not None:
+            self._thread.join(timeout=timeout_s)
+
+    @property
+    def runner(self):
+        """Return the ModelRunner answering now (``apply`` replaces it on a rebuild)."""
+        return self._runner
+
+    @runner.setter
+    def runner(self, runner):
+        with self._lock:
+            self._runner = runner
+
+    def idle(self):
+        """Return True when no input waits and the model thread is not stepping."""
+        with self._lock:
+            return not self._queue and not self._busy
+
+    # --- inputs ---------------------------------------------------------------------------
+    def on_nut_state(self, stamp_s, names, positions, velocities, recv_ns, stamp):
+        """
+        Take one nut-state sample: answer it now, or queue it for the model thread.
+
+        ``recv_ns``: when the middleware received it (``clock_ns`` time); ``stamp``: the
+        header stamp as the publisher wants it back (the original goes out unchanged: float
+        seconds lose ~0.2 us at epoch times).
+        """
+        with self._lock:
+            self._received["nut_state"] += 1
+            self._last_input = self._monotonic()
+            try:
+                sample = self._assembler.on_nut_state(stamp_s, names, positions, velocities)
+            except InputError as err:
+                self._runner.reject(err.reason, nut_state=True)
+                return
+            w = self._window
+            if w["first_stamp"] is None:
+                w["first_stamp"] = sample.stamp_s
+            w["last_stamp"] = sample.stamp_s
+            w["accepted"] += 1
+            runner = self._runner
+            if self._busy or runner.step_due(sample):
+                # the model thread answers it, in order, after the step it waits for
+                if len(self._queue) == self._queue.maxlen:
+                    self._dropped += 1      # deque drops the oldest: the newest input wins
+                self._queue.append((sample, recv_ns, stamp))
+                self._busy = True
+                self._wake.notify()
+                return
+        # No step due and the model thread idle (only this thread makes it busy): answer
+        # from the latest state at once.
+        self._inline += 1
+        self._finish(runner, runner.process(sample), recv_ns, stamp, INLINE)
+
+    def on_axial_load(self, force_z_n):
+        """Take one axial load [N] (held until the next)."""
+        with self._lock:
+            self._received["axial_load"] += 1
+            try:
+                self._assembler.on_axial_load(force_z_n)
+            except InputError as err:
+                self._runner.reject(err.reason)
+
+    def _finish(self, runner, pred, recv_ns, stamp, thread):
+        """Publish the answer to one sample unless it is too old; count either."""
+        if pred is None:        # counted by the runner as model_error
+            self.outputs.log("error", f"model step failed: {runner.stats.last_error}; "
+                             "state reset")
+            return
+        age_ns = self._clock_ns() - recv_ns
+        if age_ns > self._max_age_ns:
+            with self._lock:
+                self._shed += 1
+            return
+        self.outputs.answer(pred, stamp, 1e-9 * age_ns, thread)
+        with self._lock:
+            self._published += 1
+            self._ff_held += pred.feedforward_held
+            self._latest = pred
+            self._latest_stamp = stamp
+            changed = pred.groups is not self._last_groups and pred.groups != self._last_groups
+        if changed:
+            self.publish_groups()
+
+    def publish_groups(self):
+        """Hand the latest contact groups to ``Outputs.groups`` (also the node's timer)."""
+        with self._lock:
+            pred, stamp = self._latest, self._latest_stamp
+            if pred is None:
+                return
+            self._last_groups = pred.groups
+        self.outputs.groups(pred, stamp)
+
+    # --- model thread ---------------------------------------------------------------------
+    def _model_loop(self):
+        while True:
+            with self._lock:
+                while not self._queue and not self._stop:
+                    if self._profile_seed is not None:
+                        break
+                    self._busy = False
+                    self._wake.wait(timeout=IDLE_WAIT_S)
+                if self._stop:
+                    return
+                if not self._queue:
+                    # queue drained, a profile to compute: inputs are answered inline
+                    # meanwhile; a step falling due abandons the profile
+                    seed, self._profile_seed = self._profile_seed, None
+                    self._busy = False
+                    item = None
+                else:
+                    item = self._queue.popleft()
+                    newest_stamp = self._queue[-1][0].stamp_s if self._queue else None
+                    runner = self._runner
+            if item is None:
+                self._publish_profile(seed)
+                continue
+            sample, recv_ns, stamp = item
+            # The model fell behind when its queue spans a model period or more: a step due
+            # now would be followed at once by another.  It is left to the newest sample (the
+            # model tracks the present, not its backlog).
+            behind = newest_stamp is not None \
+                and newest_stamp - sample.stamp_s >= runner.period_s
+            resets = runner.stats.resets
+            pred = runner.process(sample, allow_step=not behind)
+            if runner.stats.resets != resets:
+                self._reset_warning(runner.stats.resets, sample.stamp_s)
+            if pred is not None and pred.stepped:
+                self._profile_seed = (runner.profile_seed(sample), stamp)
+            self._finish(runner, pred, recv_ns, stamp, MODEL)
+
+    def _reset_warning(self, resets, stamp_s):
+        """
+        Log a stamps-backwards reset, at most once per diagnostics period (counted always).
+
+        A looping source resets at every loop, and a flaky one may reset at every sample:
+        one line per reset flooded the log (issue 23, finding 21: 1191 lines in 5 s).
+        """
+        now = self._monotonic()
+        logged, t_logged = self._resets_logged
+        if now - t_logged < 1.0 / self._params.diagnostics_rate_hz:
+            return
+        self._resets_logged = (resets, now)
+        more = resets - logged - 1
+        self.outputs.log("warning", f"input stamps went backwards at {stamp_s:.6f} s: "
+                         "model state reset" + (f" ({more} more resets since the last "
+                                                "warning)" if more > 0 else ""))
+
+    def _publish_profile(self, seed_stamp):
+        seed, stamp = seed_stamp
+        horizon, points = self._profile_shape
+        try:
+            out = look_ahead_profile(seed, horizon, points, should_stop=lambda: self._busy)
+        except Exception as exc:     # a failed look-ahead must not stop the answers
+            with self._lock:
+                self._profile_errors += 1
+            self.outputs.log("error", f"look-ahead profile failed: {exc!r}")
+            return
+        if out is None:
+            with self._lock:
+                self._profiles_abandoned += 1
+            return
+        angles, torques, converged = out
+        self.outputs.profile(seed.sample, stamp, angles, torques, converged)
+        with self._lock:
+            self._profiles += 1
+
+    # --- parameters -----------------------------------------------------------------------
+    def apply(self, params, runner=None):
+        """
+        Take changed parameters (validated by the caller); ``runner``: a rebuilt model.
+
+        Counters go on across a model swap (diagnostics stay cumulative, the rate window
+        keeps its base); the same empirical terms keep their clock and filter.
+        """
+        with self._lock:
+            if runner is not None:
+                if not runner.continue_from(self._runner) and runner.terms is not None:
+                    self._notes.append("empirical terms restarted (model rebuilt)")
+                self._runner = runner
+            self._assembler.nut_joint = params.nut_joint
+            self._assembler.max_axial_load_n = params.max_axial_load_n
+            self._apply(params)
+
+    # --- diagnostics ----------------------------------------------------------------------
+    def values(self, advance=True):
+        """Return the counters as diagnostics key/values; ``advance`` starts a new window."""
+        with self._lock:
+            return self._values(advance)
+
+    def _values(self, advance):
+        stats = self._runner.stats
+        now = self._monotonic()
+        w = self._window
+        elapsed = max(now - w["t"], 1e-9)
+        latest = self._latest
+        values = {
+            "ready": self.ready,
+            "model_rate_hz": (stats.model_steps - w["steps"]) / elapsed,
+            "model_steps": stats.model_steps,
+            "last_step_s": stats.last_step_wall_s,
+            "nonconverged_steps": stats.nonconverged_steps,
+            "feedforward_held": self._ff_held,
+            "feedforward_zeroed": stats.feedforward_zeroed,
+            "model_step_deg": math.degrees(self._runner.model_step_rad),
+            "coarse_steps": stats.coarse_steps,
+            "stamp_stalls": stats.stamp_stalls,
+            "term_restarts": stats.term_restarts,
+            "queue_length": len(self._queue),
+            "skipped_inputs": self._dropped + stats.skipped_steps,
+            "skipped_steps": stats.skipped_steps,
+            "dropped_inputs": self._dropped,
+            "shed_inputs": self._shed,
+            "shed_since_last_report": self._shed - w["shed"],
+            "max_answer_age_s": 1e-9 * self._max_age_ns,
+            "published": self._published,
+            "answered_inline": self._inline,
+            "profiles": self._profiles,
+            "profiles_abandoned": self._profiles_abandoned,
+            "profile_errors": self._profile_errors,
+            "resets": stats.resets,
+            "lag_s": 0.0 if latest is None else latest.model_age_s,
+            "received_nut_state": self._received["nut_state"],
+            "received_axial_load": self._received["axial_load"],
+            "input_age_s": (now - (self._t_start if self._last_input is None
+                                   else self._last_input)),
+            "rejected_total": sum(stats.rejected.values()),
+            "rejected_nut_state": stats.rejected_nut_state,
+        }
+        for reason, n in sorted(stats.rejected.items()):
+            values[f"rejected_{reason}"] = n
+        if advance:
+            self._window = self._window_start(now)
+        return values, w, latest is None or latest.converged
+
+    def status(self, extra_warnings=()):
+        """
+        Return (level, message, values) of the schedule's health and start a new window.
+
+        ``extra_warnings``: the node's own notes (another publisher, unknown parameters).
+        """
+        with self._lock:
+            values, w, converged = self._values(advance=True)
+            notes, self._notes = self._notes, []
+            p = self._params
+            stats = self._runner.stats
+        errors = []
+        if values["input_age_s"] > p.input_timeout_s:
+            errors.append(f"no nut_state for {values['input_age_s']:.3g} s (input_timeout_s "
+                          f"= {p.input_timeout_s:g} s)" if self._last_input is not None
+                          else f"no nut_state received yet ({values['input_age_s']:.3g} s "
+                          "since start)")
+        warnings = []
+        floor, span_s = self._expected_steps(w, p)
+        steps = values["model_steps"] - w["steps"]
+        if steps < (1.0 - p.model_rate_tolerance) * floor:
+            warnings.append(f"model rate low: {steps} steps in {span_s:.3g} s of input, "
+                            f"expected at least {floor:.0f} (model_rate_hz = "
+                            f"{p.model_rate_hz:g}, model_rate_tolerance = "
+                            f"{p.model_rate_tolerance:g})")
+        if not converged:
+            warnings.append("solver did not converge: feedforward holds the last converged "
+                            "value (0 after a reversal or at standstill)")
+        if values["shed_since_last_report"]:
+            warnings.append(f"shedding load: {values['shed_since_last_report']} answers "
+                            f"older than max_answer_age_s = {values['max_answer_age_s']:.6g} "
+                            "s not published")
+        if stats.stamp_stalls > w["stalls"]:
+            warnings.append(f"input stamps do not advance ({values['stamp_stalls']} samples "
+                            "with the previous sample's stamp): the model steps on nut "
+                            "angle, direction and load only, and model_age_s is 0 for those")
+        if stats.coarse_steps > w["coarse"]:
+            warnings.append(f"model could not keep up: {values['coarse_steps']} coarser "
+                            f"steps, now {values['model_step_deg']:.3g} deg per step "
+                            f"(model_step_deg = {p.model_step_deg:g})")
+        if values["skipped_steps"]:
+            warnings.append(f"model fell behind: {values['skipped_steps']} steps skipped "
+                            "(answers differ from replay from then on)")
+        if values["rejected_total"] or values["dropped_inputs"]:
+            warnings.append(f"{values['rejected_total']} inputs rejected, "
+                            f"{values['dropped_inputs']} dropped")
+        if values["profile_errors"]:
+            warnings.append(f"{values['profile_errors']} look-ahead profiles failed")
+        if stats.resets > w["resets"]:
+            warnings.append(f"input stamps went backwards: model state reset "
+                            f"{stats.resets - w['resets']} times ({stats.resets} in all)")
+        warnings += list(extra_warnings) + notes
+        level = ERROR if errors else WARN if warnings else OK
+        message = "; ".join(errors + warnings) or ("ok" if self.ready else "starting")
+        return level, message, values
+
+    def _expected_steps(self, w, p):
+        """
+        Return (the fewest model steps the window's accepted inputs must cause, their span).
+
+        The schedule's time floor steps the model once per 1/model_rate_hz of input time
+        (stamps, not wall time: a recording played slowly is no low rate), and at most once
+        per input.  0 when the window tells nothing (under two inputs, stamps stalled or
+        gone backwards).
+        """
+        if w["accepted"] < 2:
+            return 0.0, 0.0
+        span_s = w["last_stamp"] - w["first_stamp"]
+        if not span_s > 0.0:
+            return 0.0, 0.0
+        # minus one: the window may begin just after a step
+        return max(0.0, min(math.floor(span_s * p.model_rate_hz),
+                            w["accepted"] - 1) - 1.0), span_s
+
+
+def process_age_s():
+    """Seconds since this process started (Linux /proc), or None elsewhere: start-up time."""
+    try:
+        with open("/proc/self/stat") as fh:
+            start_ticks = int(fh.read().rsplit(")", 1)[1].split()[19])
+        with open("/proc/uptime") as fh:
+            uptime_s = float(fh.read().split()[0])
+    except (OSError, ValueError, IndexError):
+        return None
+    return uptime_s - start_ticks / os.sysconf("SC_CLK_TCK")

@@ -1,0 +1,241 @@
+"""
+live.LiveSchedule without ROS: answers, shedding, falling behind, health, log rate.
+
+No DDS and no rclpy: the publishers are plain functions recording what they are given, the
+clocks are handed in where a test needs to move time.  The model is the real whole-screw
+runner (equality with replay) or a screw with a known step time (falling behind).
+"""
+
+import threading
+import time
+
+import pytest
+
+from bb_friction_ros.bags import Event
+from bb_friction_ros.config import bundled_config
+from bb_friction_ros.live import ERROR, LiveSchedule, OK, Outputs, process_age_s, WARN
+from bb_friction_ros.node_parameters import NodeParameters
+from bb_friction_ros.replay import run_events
+from bb_friction_ros.runner import build_runner, InputAssembler, ModelRunner
+from recordings import short_recording
+from test_node_feedforward_sign import SlowScrew
+
+
+class Recorder:
+    """The node's publishers as functions: what each was handed, in order."""
+
+    def __init__(self):
+        self.answers, self.groups, self.profiles, self.logs = [], [], [], []
+        self._lock = threading.Lock()
+
+    def outputs(self):
+        return Outputs(answer=self._answer, groups=lambda p, s: self.groups.append((p, s)),
+                       profile=lambda *a: self.profiles.append(a),
+                       log=lambda level, text: self.logs.append((level, text)))
+
+    def _answer(self, pred, stamp, latency_s, thread):
+        with self._lock:
+            self.answers.append((pred, stamp, latency_s, thread))
+
+
+class Clock:
+    """A monotonic clock a test moves by hand."""
+
+    def __init__(self, t=1000.0):
+        self.t = t
+
+    def __call__(self):
+        return self.t
+
+
+def schedule(params=None, runner=None, clock=None, clock_ns=time.time_ns):
+    p = params or NodeParameters(max_answer_age_s=10.0)
+    runner = runner or build_runner(bundled_config("ball_screw.yaml"), p.model_rate_hz)
+    rec = Recorder()
+    live = LiveSchedule(runner, InputAssembler(p.nut_joint, p.max_axial_load_n), p,
+                        rec.outputs(), clock_ns=clock_ns, monotonic=clock or time.monotonic)
+    live.start()
+    return live, rec
+
+
+def feed(live, events, wait_idle=True):
+    """Hand ``events`` in as the node's input thread would; wait for each to be answered."""
+    for ev in events:
+        if ev.kind == "axial_load":
+            live.on_axial_load(ev.value)
+        elif ev.kind == "nut_state":
+            live.on_nut_state(ev.stamp_s, ev.names, ev.positions, ev.velocities,
+                              time.time_ns(), ev.stamp_s)
+            while wait_idle and not live.idle():
+                time.sleep(0.0002)
+
+
+def wait_until(cond, timeout_s=20.0):
+    deadline = time.monotonic() + timeout_s
+    while not cond():
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.001)
+
+
+def test_live_schedule_equals_replay():
+    """Paced inputs (the model keeps up): the answers are replay's, value for value."""
+    events = short_recording(state_rate_hz=500.0)     # 5 inputs per model period
+    live, rec = schedule()
+    try:
+        feed(live, events)
+    finally:
+        live.stop()
+    p = NodeParameters()
+    ref = run_events(events, build_runner(bundled_config("ball_screw.yaml"), p.model_rate_hz),
+                     InputAssembler(p.nut_joint, p.max_axial_load_n))
+    got = sorted(rec.answers, key=lambda a: a[1])
+    assert len(got) == len(ref) > 0
+    for (pred, stamp, _, _), want in zip(got, ref):
+        assert stamp == want.stamp_s
+        assert pred == want
+    values = live.values()[0]
+    assert values["skipped_steps"] == values["dropped_inputs"] == values["shed_inputs"] == 0
+    # both threads answered: the inline path and the model thread
+    assert {a[3] for a in rec.answers} == {0, 1}
+    assert values["answered_inline"] > 0 and values["profiles"] == len(rec.profiles) > 0
+
+
+def test_answers_older_than_the_limit_are_shed_and_counted():
+    """A clock that says every answer is 1 s old: none published, every one counted."""
+    events = short_recording()
+    live, rec = schedule(NodeParameters(max_answer_age_s=0.02),
+                         clock_ns=lambda: time.time_ns() + 1_000_000_000)
+    try:
+        feed(live, events)
+    finally:
+        live.stop()
+    values = live.values()[0]
+    n = sum(e.kind == "nut_state" for e in events)
+    assert rec.answers == [] and values["published"] == 0
+    assert values["shed_inputs"] == values["received_nut_state"] == n
+
+
+def test_a_slow_model_falls_behind_coarsens_and_says_so():
+    """A burst on a model slower than the input: steps skipped and coarser, WARN, all counted."""
+    p = NodeParameters(max_answer_age_s=10.0, queue_size=100000)
+    live, rec = schedule(p, runner=ModelRunner(SlowScrew(), p.model_rate_hz))
+    j = ("nut_joint",)
+    try:
+        live.on_axial_load(1500.0)
+        n = 300
+        for k in range(n):      # 1 kHz stamps, 6 rad/s, handed in at once
+            live.on_nut_state(1e-3 * k, j, (6e-3 * k,), (6.0,), time.time_ns(), k)
+        wait_until(lambda: live.values(advance=False)[0]["published"] == n)
+    finally:
+        live.stop()
+    level, message, values = live.status()
+    assert values["skipped_steps"] > 0 and values["coarse_steps"] > 0
+    assert level == WARN and "steps skipped" in message and "coarser" in message
+    # answered in arrival order, each exactly once
+    assert [a[1] for a in rec.answers] == sorted(a[1] for a in rec.answers)
+    assert len({a[1] for a in rec.answers}) == n
+
+
+def test_no_input_is_an_error_and_inputs_make_it_ok():
+    """As diagnostic_updater's FrequencyStatus: ERROR with no events, OK once they come."""
+    clock = Clock()
+    p = NodeParameters(max_answer_age_s=10.0, input_timeout_s=0.5)
+    live, rec = schedule(p, clock=clock)
+    try:
+        assert live.ready
+        clock.t += 0.6
+        level, message, _ = live.status()
+        assert level == ERROR and "no nut_state received yet" in message
+        events = short_recording()
+        feed(live, events)
+        level, message, values = live.status()
+        assert (level, message) == (OK, "ok"), message
+        assert values["ready"] is True
+        clock.t += 0.4                        # within input_timeout_s: still fine
+        assert live.status()[0] == OK
+        clock.t += 0.2                        # 0.6 s since the last nut_state
+        level, message, _ = live.status()
+        assert level == ERROR and "no nut_state for 0.6 s" in message
+    finally:
+        live.stop()
+
+
+def test_a_model_rate_below_the_configured_floor_warns():
+    """The model steps at 10 Hz where model_rate_hz = 100 asks for 100 steps/s: WARN."""
+    p = NodeParameters(max_answer_age_s=10.0, model_step_deg=90.0, max_model_step_deg=90.0)
+    slow = build_runner(bundled_config("ball_screw.yaml"), 10.0, 90.0, 90.0)
+    live, _ = schedule(p, runner=slow)
+    j = ("nut_joint",)
+    try:
+        feed(live, [Event("axial_load", 0.0, value=1500.0)])
+        live.status()                          # a window starting now
+        # 1 s of input at 1 kHz, 0.6 rad/s: the 90 deg step never falls due, the time floor
+        # (10 Hz here) does
+        feed(live, [Event("nut_state", 1e-3 * k, j, (6e-4 * k,), (0.6,))
+                    for k in range(1000)])
+        level, message, values = live.status()
+        assert level == WARN and "model rate low" in message, message
+        assert "expected at least 98" in message
+        # the same inputs on a runner of the configured rate: no warning
+        ok, _ = schedule(p, runner=build_runner(bundled_config("ball_screw.yaml"), 100.0,
+                                                90.0, 90.0))
+        feed(ok, [Event("axial_load", 0.0, value=1500.0)])
+        ok.status()
+        feed(ok, [Event("nut_state", 1e-3 * k, j, (6e-4 * k,), (0.6,)) for k in range(1000)])
+        level, message, _ = ok.status()
+        ok.stop()
+        assert level == OK, message
+    finally:
+        live.stop()
+
+
+def test_backward_stamps_are_counted_and_logged_at_most_once_per_period():
+    """Issue 23, finding 21: a reset at every sample gave one warning each (1191 in 5 s)."""
+    clock = Clock()
+    p = NodeParameters(max_answer_age_s=10.0, diagnostics_rate_hz=1.0)
+    live, rec = schedule(p, clock=clock)
+    j = ("nut_joint",)
+    try:
+        feed(live, [Event("axial_load", 0.0, value=1500.0)])
+        # every other sample goes back in time: 50 resets
+        events = [Event("nut_state", 10.0 + (0.01 * k if k % 2 == 0 else -0.01 * k), j,
+                        (0.06 * k,), (6.0,)) for k in range(101)]
+        feed(live, events)
+        warnings = [t for level, t in rec.logs if level == "warning"]
+        resets = live.values(advance=False)[0]["resets"]
+        assert resets >= 50 and len(warnings) == 1, (resets, warnings)
+        clock.t += 1.0                         # one diagnostics period later
+        feed(live, [Event("nut_state", 5.0, j, (0.0,), (6.0,))])
+        warnings = [t for level, t in rec.logs if level == "warning"]
+        assert len(warnings) == 2 and f"({resets - 1} more resets" in warnings[1]
+        level, message, values = live.status()
+        assert level == WARN and "model state reset" in message
+        assert values["resets"] == resets + 1
+    finally:
+        live.stop()
+
+
+def test_a_rebuilt_model_keeps_the_counters():
+    """apply(): a new runner takes over the counters; parameters change in place."""
+    live, _ = schedule()
+    try:
+        feed(live, short_recording())
+        steps = live.values(advance=False)[0]["model_steps"]
+        new = build_runner(bundled_config("ball_screw.yaml"), 50.0)
+        live.apply(NodeParameters(model_rate_hz=50.0, nut_joint="other"), new)
+        assert live.runner is new and live.values()[0]["model_steps"] == steps
+        live.on_nut_state(100.0, ("nut_joint",), (0.0,), (1.0,), time.time_ns(), 100.0)
+        assert live.values()[0]["rejected_wrong_joint"] == 1
+    finally:
+        live.stop()
+
+
+def test_process_age_is_this_process():
+    """The start-up figure of the ready log line: this process's age, not the machine's."""
+    age = process_age_s()
+    assert age is not None and 0.0 <= age < time.monotonic()
+    assert age == pytest.approx(time.monotonic() - _T_IMPORTED + _AGE_AT_IMPORT, abs=0.1)
+
+
+_T_IMPORTED = time.monotonic()
+_AGE_AT_IMPORT = process_age_s()
