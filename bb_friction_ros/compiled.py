@@ -29,7 +29,7 @@ try:
         fastmath limited to FMA contraction, reciprocals and reassociation (20 % faster
         evaluation in the ball-screw kernel, agrees with the numpy path to ~1e-14); never
         nnan/ninf: the line searches test for non-finite residuals.  nogil: the live node's
-        executor thread takes and answers inputs while the model thread is inside a solve.
+        input thread takes and answers inputs while the model thread is inside a solve.
         """
         return numba.njit(cache=True, error_model="numpy", nogil=True,
                           fastmath={"contract", "arcp", "reassoc"})(fn)
