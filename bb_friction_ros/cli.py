@@ -205,6 +205,10 @@ def _run_replay(args):
     except (FileNotFoundError, BBFrictionError) as exc:   # BagError, NothingAccepted included
         print(f"bb-friction replay: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:      # issue 23 #16: no traceback; summary.json says complete: false
+        print(f"bb-friction replay: interrupted; the outputs in {args.out} are partial "
+              "(summary.json: \"complete\": false)", file=sys.stderr)
+        return 130
     print(json.dumps({k: summary[k] for k in ("samples", "rejected", "nonconverged_steps",
                                               "speed_vs_realtime")
                       + (("rmse_nm",) if "rmse_nm" in summary else ())}))

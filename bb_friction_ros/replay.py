@@ -7,6 +7,13 @@ streamed: each message is read, answered and written out before the next, so mem
 grow with the recording.  Writes ``prediction.csv``, ``summary.json``, PNG plots and ``bag/``:
 a rosbag2 (mcap) with the input topics copied and the node's output topics, for Foxglove,
 PlotJuggler or ``ros2 bag play``.
+
+Into an ``--out`` used before, the earlier run's ``summary.json``, plot and ``bag/`` are
+removed first (``bag/`` also with ``--no-bag``), so nothing stale sits beside the new
+outputs; ``summary.json`` is written last with ``"complete": true``, or with
+``"complete": false`` if the run is interrupted (issue 23 #16, #17).  ``duration_s`` is the
+recording's span in log time (when the recorder received the messages): one far-future
+header stamp does not make a 6-second bag last 2e9 s (issue 23 #20).
 """
 
 from array import array
@@ -33,6 +40,9 @@ CSV_COLUMNS = ["t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n", "to
 # Output topics and types, as friction_node publishes them (node.py).
 PREDICTION_TOPIC, GROUPS_TOPIC, FEEDFORWARD_TOPIC = OUTPUT_TOPICS = tuple(
     (interface.absolute(t), interface.TYPES[t]) for t in interface.REPLAYED_OUTPUTS)
+PLOT_FILE = "replay_torque_and_groups.png"
+SUMMARY_FILE = "summary.json"
+BAG_DIR = "bag"
 
 
 class NothingAccepted(BagError):
@@ -279,6 +289,7 @@ def replay(bag, out, config=None, settings=NodeParameters(), topics=Topics(), pr
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    _remove_earlier_outputs(bag, out)
     with BagInput(bag, topics) as src:
         runner = build_runner(config or settings.config_file
                               or bundled_config("ball_screw.yaml"), settings.model_rate_hz,
@@ -289,10 +300,15 @@ def replay(bag, out, config=None, settings=NodeParameters(), topics=Topics(), pr
         measured = any(c.topic == topics.absolute("measured_torque") and c.msgcount
                        for c in src.connections if c.topic in src.resolved)
         empirical = runner.terms is not None
-        outbag = _OutputBag(out / "bag", src.connections) if write_bag else None
+        outbag = _OutputBag(out / BAG_DIR, src.connections) if write_bag else None
         try:
             summary = _stream(src, runner, assembler, out, measured, empirical, outbag,
                               progress)
+        except KeyboardInterrupt:
+            _write_summary(out, {"complete": False, "bag": str(bag),
+                                 "reason": "interrupted: prediction.csv and bag/ hold only "
+                                           "the part replayed"})
+            raise
         finally:
             if outbag is not None:
                 outbag.close()
@@ -300,20 +316,47 @@ def replay(bag, out, config=None, settings=NodeParameters(), topics=Topics(), pr
                        model_step_deg=settings.model_step_deg,
                        topics=dict(src.topic_types))
         if outbag is not None:
-            summary["output_bag"] = {"path": str(out / "bag"), "written": outbag.written,
+            summary["output_bag"] = {"path": str(out / BAG_DIR), "written": outbag.written,
                                      "not_copied": {t: why for (t, _), why
                                                     in outbag.bag.not_copied.items()}}
-        (out / "summary.json").write_text(json.dumps(summary, indent=2))
+        for warning in summary.get("warnings", ()):
+            print(f"bb-friction replay: warning: {warning}", file=sys.stderr)
+        _write_summary(out, summary)
         if summary["samples"] == 0:
             raise NothingAccepted(nothing_accepted_message(src, runner.stats, settings))
     return summary
+
+
+def _write_summary(out, summary):
+    (out / SUMMARY_FILE).write_text(json.dumps(summary, indent=2))
+
+
+def _remove_earlier_outputs(bag, out):
+    """
+    Remove what an earlier replay into ``out`` wrote and this one may not overwrite.
+
+    A summary.json of another bag beside a new, partial prediction.csv (Ctrl-C), or a bag/
+    beside a ``--no-bag`` run's outputs, would be read as this run's.  Refused first: an
+    input bag that is (or lies in) ``out/bag``, which a replay replaces.
+    """
+    own_bag = (out / BAG_DIR).resolve()
+    src = Path(bag).resolve()
+    if src == own_bag or own_bag in src.parents:
+        raise BagError(f"--out {out}: the input bag {bag} is replay's own output bag "
+                       f"{out / BAG_DIR}, which a replay replaces; pass another --out")
+    for name in (SUMMARY_FILE, PLOT_FILE):
+        (out / name).unlink(missing_ok=True)
+    if own_bag.is_dir() and not own_bag.is_symlink():
+        shutil.rmtree(own_bag)
+    elif (out / BAG_DIR).is_symlink() or own_bag.is_file():
+        (out / BAG_DIR).unlink()
 
 
 def _stream(src, runner, assembler, out, measured, empirical, outbag, progress):
     series = _Series(measured)
     aligner = MeasuredAligner() if measured else None
     sq_err, n_err = 0.0, 0
-    t_min, t_max = math.inf, -math.inf
+    log_min, log_max = math.inf, -math.inf
     bar = None
     if progress:
         from tqdm import tqdm
@@ -340,6 +383,7 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress):
                 outbag.copy(conn, log_ns, raw)
             if ev is None:
                 continue
+            log_min, log_max = min(log_min, log_ns), max(log_max, log_ns)
             if ev.kind == "measured_torque":
                 emit(aligner.add_measured(ev.stamp_s, ev.value))
                 continue
@@ -347,7 +391,6 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress):
             pred = feed_event(ev, runner, assembler)
             if pred is None:
                 continue
-            t_min, t_max = min(t_min, pred.stamp_s), max(t_max, pred.stamp_s)
             if outbag is not None:
                 outbag.publish(pred, stamp_ns(ev), time.perf_counter() - t_in)
             row = series.add(pred)
@@ -363,8 +406,11 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress):
     if bar is not None:
         bar.close()
     stats = runner.stats
-    span = (t_max - t_min) if series.rows > 1 else 0.0
+    # log time, not header stamps: a header stamp is whatever the driver wrote (one of
+    # 2e9 s claimed a 2e9 s recording replayed at 1e10 x real time, issue 23 #20)
+    span = (log_max - log_min) * 1e-9 if log_max > log_min else 0.0
     summary = {
+        "complete": True,
         "messages": dict(src.counts),
         "samples": series.rows,
         "rejected": dict(stats.rejected),
@@ -377,6 +423,13 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress):
     }
     if measured:
         summary["rmse_nm"] = math.sqrt(sq_err / n_err) if n_err else None
+        summary["measured_rows"] = n_err
+        summary["measured_alignment"] = {
+            "runs": aligner.runs, "late_stamps": aligner.late,
+            "stamps_far_ahead": aligner.ahead,
+            "unmatched_predictions": aligner.unmatched_predictions,
+            "unmatched_measured": aligner.unmatched_measured}
+        summary["warnings"] = aligner.warnings()
     if series.rows:
         plot_replay(out, series)
     series.close()
@@ -442,4 +495,4 @@ def plot_replay(out, series):
     for a in ax:
         a.grid(True)
     fig.tight_layout()
-    fig.savefig(Path(out) / "replay_torque_and_groups.png", dpi=110)
+    fig.savefig(Path(out) / PLOT_FILE, dpi=110)

@@ -1,5 +1,8 @@
 """Reading recordings: damaged bags are clear errors naming the file (issue 13 finding 17)."""
 
+import math
+
+import numpy as np
 import pytest
 
 from bb_friction_ros.bags import BagError, Event, measured_torque_at, read_events, \
@@ -137,3 +140,107 @@ def test_fast_input_decoding_equals_rosbags_and_leaves_anything_odd_to_it():
         assert fast_wrench_torque_z(raw) == (-3, 999_999_999, 0.125)
         assert fast_wrench_force_z(raw[:-1]) is None
         assert fast_wrench_force_z(raw + bytes(4)) is None
+
+
+# --- issue 23 #6: a late stamp is not a restart; nothing is held without bound ------------
+
+def _stream(n, rate_hz=1000.0):
+    return [k / rate_hz for k in range(n)]
+
+
+def test_one_late_prediction_stamp_keeps_the_measurement():
+    """One nut_state stamp 10.5 ms late in 6 s at 1 kHz: every row keeps its measurement."""
+    t = _stream(6000)
+    meas = [Event("measured_torque", s, value=math.sin(s)) for s in t]
+    stamps = list(t)
+    stamps[1500] -= 0.0105                        # late: jitter, not a restart
+    got = measured_torque_at(meas, stamps)
+    assert np.isfinite(got).all()
+    assert np.allclose(got, np.sin(stamps), atol=1e-6)   # aligned by its own stamp
+
+
+def test_late_samples_in_either_stream_are_aligned_in_their_run():
+    from bb_friction_ros.bags import MeasuredAligner
+    al = MeasuredAligner()
+    out = []
+    t = _stream(3000)
+    for k, s in enumerate(t):
+        ms = s - 0.004 if k == 700 else s          # one late measured stamp too
+        out += al.add_measured(ms, 2.0 * ms)
+        ps = s - 0.0105 if k == 1500 else s
+        out += al.add_prediction(ps, ps)
+    out += al.finish()
+    assert len(out) == 3000 and all(v == pytest.approx(2.0 * p) for p, v in out[1:])
+    assert al.runs == {"prediction": 1, "measured": 1}
+    assert al.late == {"prediction": 1, "measured": 1} and al.warnings() == []
+
+
+def test_a_restart_is_still_a_new_run_even_a_short_step_back():
+    """A loop of 0.1 s goes back by only 0.09 s but carries on below: a restart."""
+    meas = [Event("measured_torque", 0.01 * (k % 10 + 1), value=float(k // 10))
+            for k in range(20)]
+    got = measured_torque_at(meas, [0.01 * (k % 10 + 1) for k in range(20)])
+    assert got.tolist() == [0.0] * 10 + [1.0] * 10
+
+
+def test_unmatched_predictions_are_not_held_without_bound():
+    """Predictions restart, the measurement never does: released as NaN, counted, warned."""
+    from bb_friction_ros.bags import MeasuredAligner
+    al = MeasuredAligner(max_held=500)           # above the 0.1 s (100-sample) history kept
+    done, longest = [], 0
+    for k in range(2000):
+        s = k / 1000.0
+        done += al.add_measured(s, 1.0)
+        done += al.add_prediction(s if k < 1000 else s - 1.0, k)   # restarts at k = 1000
+        longest = max(longest, len(al._preds))
+    done += al.finish()
+    assert longest <= 501 and len(done) == 2000
+    assert [k for k, _ in done] == list(range(2000))               # in prediction order
+    assert all(v == 1.0 for _, v in done[:1000])
+    assert all(math.isnan(v) for _, v in done[1000:])
+    assert al.unmatched_predictions == 500 and al.unmatched_measured == 0   # 500 at finish
+    text = " ".join(al.warnings())
+    assert "prediction stream has 2 run(s) and the measured torque 1" in text
+    assert "500 prediction(s) and 0 measured sample(s)" in text
+
+
+def test_unmatched_measured_samples_are_not_held_without_bound():
+    from bb_friction_ros.bags import MeasuredAligner
+    al = MeasuredAligner(max_held=100)
+    for k in range(5000):                         # a measurement with no prediction at all
+        al.add_measured(k / 1000.0, 1.0)
+        assert sum(len(m) for m in al._meas) <= 100
+    assert al.unmatched_measured == 4900
+
+
+def test_one_far_future_stamp_is_not_a_restart():
+    """Issue 23 #20: one stamp at 2e9 s, then the stream carries on: same run, counted."""
+    from bb_friction_ros.bags import MeasuredAligner
+    al = MeasuredAligner()
+    out = []
+    for k in range(3000):
+        s = k / 1000.0
+        out += al.add_measured(s, 3.0 * s)
+        out += al.add_prediction(2.0e9 if k == 1000 else s, k)
+    out += al.finish()
+    assert [k for k, _ in out] == list(range(3000))
+    assert all(v == pytest.approx(3.0 * k / 1000.0) for k, v in out if k != 1000)
+    assert math.isnan(dict(out)[1000])
+    assert al.runs == {"prediction": 1, "measured": 1}
+    assert al.ahead == {"prediction": 1, "measured": 0}
+
+
+def test_one_far_future_measured_stamp_brackets_nothing():
+    from bb_friction_ros.bags import MeasuredAligner
+    al = MeasuredAligner()
+    out = []
+    for k in range(3000):
+        s = k / 1000.0
+        out += al.add_measured(2.0e9 if k == 1000 else s, 3.0 * s)
+        out += al.add_prediction(s + 0.0005, k)           # between two measured samples
+    out += al.finish()
+    values = dict(out)
+    # the prediction at 0.9995 and 1.0005 bracket the missing sample: interpolated across it
+    assert values[999] == pytest.approx(3.0 * 0.9995) and values[1000] == pytest.approx(3.0015)
+    assert all(v == pytest.approx(3.0 * (k / 1000.0 + 0.0005)) for k, v in out if k < 2999)
+    assert al.ahead == {"prediction": 0, "measured": 1} and al.warnings() == []

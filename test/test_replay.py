@@ -468,3 +468,133 @@ def test_plotted_series_decimates_in_bounded_memory():
     assert c["torque"].max() == pytest.approx(1.0, abs=1e-6) and c["largest"].max() == 6.0
     assert c["t"][0] == 0.0 and c["t"][-1] <= 0.001 * (n - 1)
     assert peak < 3_000_000, peak
+
+
+# --- issue 23 #6, #16, #17, #20: real bags with a late stamp, a far-future stamp, reruns ----
+
+def _late_bag(path, late_index=None, late_by_s=0.0105, segment_s=1.5):
+    """A 3 s, 1 kHz recording with measured torque; one nut_state stamp moved (header only).
+
+    Log times stay the true times, as a recorder receiving the messages writes them.
+    """
+    import dataclasses
+    events = short_recording(state_rate_hz=1000.0, segment_s=segment_s)
+    log_times = [e.stamp_s for e in events]
+    k = -1
+    for i, e in enumerate(events):
+        if e.kind == "nut_state":
+            k += 1
+            if k == late_index:
+                new = e.stamp_s - late_by_s if late_by_s < 1e6 else late_by_s
+                events[i] = dataclasses.replace(e, stamp_s=new)
+    write_events(path, events, storage="mcap", log_times_s=log_times)
+    return sum(e.kind == "nut_state" for e in events)
+
+
+def _measured_column(out):
+    rows = list(csv.DictReader(open(out / "prediction.csv")))
+    return np.array([float(r["torque_meas_nm"]) for r in rows])
+
+
+def test_one_late_nut_state_stamp_keeps_the_measurement(tmp_path):
+    """#6: a stamp 10.5 ms late in a real bag; every row keeps its measured torque.
+
+    It used to cut the prediction stream alone: 3/4 of the rows had no measurement and
+    rmse_nm covered the first quarter of the recording."""
+    from bb_friction_ros.replay import replay
+    n = _late_bag(tmp_path / "late", late_index=750)
+    _late_bag(tmp_path / "clean")
+    late = replay(tmp_path / "late", tmp_path / "o_late", progress=False, write_bag=False)
+    clean = replay(tmp_path / "clean", tmp_path / "o_clean", progress=False, write_bag=False)
+    meas_late, meas_clean = _measured_column(tmp_path / "o_late"), \
+        _measured_column(tmp_path / "o_clean")
+    assert len(meas_late) == n and np.isfinite(meas_late).sum() == np.isfinite(meas_clean).sum()
+    assert np.isfinite(meas_late).sum() >= n - 1
+    assert late["measured_rows"] == clean["measured_rows"] >= n - 1
+    assert late["measured_alignment"]["runs"] == {"prediction": 1, "measured": 1}
+    assert late["measured_alignment"]["late_stamps"]["prediction"] == 1
+    assert late["warnings"] == []
+    # each row is paired with the measurement at its own stamp: the same as without the
+    # late stamp but for the late row itself (interpolated 10.5 ms earlier)
+    differ = np.flatnonzero(meas_late != meas_clean)
+    assert differ.tolist() == [750]
+    # rmse_nm covers every row (the runner's reset at the late stamp changes the predictions
+    # after it, which is the runner's business, not the alignment's)
+    rows = list(csv.DictReader(open(tmp_path / "o_late" / "prediction.csv")))
+    err = np.array([float(r["torque_meas_nm"]) - float(r["torque_pred_nm"]) for r in rows])
+    assert late["rmse_nm"] == pytest.approx(np.sqrt(np.nanmean(err ** 2)), rel=1e-9)
+
+
+def test_one_far_future_stamp_does_not_stretch_the_duration(tmp_path):
+    """#20: one header stamp at 2e9 s: the summary keeps the recording's 3 s (log time)."""
+    from bb_friction_ros.replay import replay
+    n = _late_bag(tmp_path / "bag", late_index=1000, late_by_s=2.0e9)
+    summary = replay(tmp_path / "bag", tmp_path / "out", progress=False, write_bag=False)
+    assert summary["duration_s"] == pytest.approx(3.0, abs=0.01)
+    assert summary["speed_vs_realtime"] < 1e4
+    assert summary["measured_alignment"]["stamps_far_ahead"]["prediction"] == 1
+    assert summary["measured_rows"] >= n - 2        # the far one, and at most its neighbour
+
+
+def test_no_bag_rerun_removes_the_stale_bag_and_summary(tmp_path):
+    """#17: replay --no-bag into an earlier --out: the old bag/ (and plot) are removed."""
+    write_events(tmp_path / "in", short_recording(), storage="mcap")
+    out = tmp_path / "out"
+    assert main(["replay", str(tmp_path / "in"), "--out", str(out), "--no-progress"]) == 0
+    assert (out / "bag" / "metadata.yaml").exists()
+    first = json.loads((out / "summary.json").read_text())
+    assert first["complete"] is True and "output_bag" in first
+    assert main(["replay", str(tmp_path / "in"), "--out", str(out), "--no-progress",
+                 "--no-bag"]) == 0
+    assert not (out / "bag").exists()
+    second = json.loads((out / "summary.json").read_text())
+    assert second["complete"] is True and "output_bag" not in second
+
+
+def test_replay_refuses_to_overwrite_its_input_bag(tmp_path, capsys):
+    """The input is OUT/bag (an earlier replay's output bag): refused, not deleted."""
+    write_events(tmp_path / "in", short_recording(), storage="mcap")
+    out = tmp_path / "out"
+    assert main(["replay", str(tmp_path / "in"), "--out", str(out), "--no-progress"]) == 0
+    assert main(["replay", str(out / "bag"), "--out", str(out), "--no-progress"]) == 2
+    assert "replay's own output bag" in capsys.readouterr().err
+    assert (out / "bag" / "metadata.yaml").exists()
+
+
+def test_ctrl_c_leaves_no_stale_summary_and_exits_130(tmp_path):
+    """#16: SIGINT during a replay into an earlier --out: no traceback, exit 130, and no
+    summary.json of the earlier run beside the partial outputs (it says complete: false)."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time as clock
+    write_events(tmp_path / "small", short_recording(), storage="mcap")
+    out = tmp_path / "out"
+    assert main(["replay", str(tmp_path / "small"), "--out", str(out), "--no-progress"]) == 0
+    old_rows = len((out / "prediction.csv").read_text().splitlines())
+    _late_bag(tmp_path / "big", segment_s=30.0)                  # 60 s at 1 kHz
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    proc = subprocess.Popen([sys.executable, "-m", "bb_friction_ros.cli", "replay",
+                             str(tmp_path / "big"), "--out", str(out), "--no-progress"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        # wait until the new run is writing well past the old file's rows
+        deadline = clock.monotonic() + 240.0
+        while clock.monotonic() < deadline and proc.poll() is None:
+            try:
+                if len((out / "prediction.csv").read_text().splitlines()) > old_rows + 500:
+                    break
+            except OSError:
+                pass
+            clock.sleep(0.2)
+        assert proc.poll() is None, "the replay ended before it could be interrupted"
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, err[-2000:]
+    assert "Traceback" not in err and "interrupted" in err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["complete"] is False and summary["bag"] == str(tmp_path / "big")
