@@ -22,22 +22,29 @@ try:
     import numba
     HAVE_NUMBA = True
 
-    def jit(fn):
+    def jit(fn=None, exact=False):
         """
         Compile ``fn`` with numba (no Python objects), cached on disk.
 
         fastmath limited to FMA contraction, reciprocals and reassociation (20 % faster
         evaluation in the ball-screw kernel, agrees with the numpy path to ~1e-14); never
-        nnan/ninf: the line searches test for non-finite residuals.  nogil: the live node's
-        executor thread takes and answers inputs while the model thread is inside a solve.
+        nnan/ninf: the line searches test for non-finite residuals.  ``exact=True``
+        (``@jit(exact=True)``): no fastmath at all, for code that must round exactly as the
+        numpy code it replaces (a fused multiply-add differs in the last bit).  nogil: the
+        live node's executor thread takes and answers inputs while the model thread is
+        inside a solve.
         """
+        if fn is None:
+            return lambda f: jit(f, exact)
         return numba.njit(cache=True, error_model="numpy", nogil=True,
-                          fastmath={"contract", "arcp", "reassoc"})(fn)
+                          fastmath=False if exact else {"contract", "arcp", "reassoc"})(fn)
 except ImportError:        # pragma: no cover - numba is an exec_depend
     HAVE_NUMBA = False
 
-    def jit(fn):
+    def jit(fn=None, exact=False):
         """Without numba: the plain Python function."""
+        if fn is None:
+            return lambda f: f
         return fn
 
 # Levenberg-Marquardt shift of a singular matrix, relative to its largest entry: sqrt(eps)

@@ -306,3 +306,29 @@ def test_falling_behind_takes_coarser_steps_and_recovers():
     feed(4 * RELAX_AFTER_STEPS, True)
     assert runner.scale == 2.0
     assert runner.step_rad == pytest.approx(d)
+
+
+def test_inputs_further_apart_than_the_step_are_substepped():
+    """
+    Issue 20, item 1: at 20 rev/s, 1 kHz input is 7.2 deg per sample; a 1.8 deg schedule steps
+    the model at 1.8 deg along the line between the samples (stamps, angles, loads linear),
+    never across a reversal, and crosses an angle jump in at most MAX_SUBSTEPS steps.
+    """
+    from bb_friction_ros.runner import MAX_SUBSTEPS
+    screw = RecordingScrew()
+    runner = ModelRunner(screw, model_rate_hz=100.0, model_step_deg=1.8)
+    w = 2 * math.pi * 20.0
+    for k in range(3):
+        runner.process(InputSample(1.0 + 1e-3 * k, w * 1e-3 * k, w, 100.0))
+    steps = [c for c in screw.calls if c[0] == "step"]
+    assert len(steps) == 1 + 2 * 4 and runner.stats.substeps == 2 * 3
+    angles = [c[1] for c in steps]
+    assert angles == pytest.approx([math.radians(1.8) * i for i in range(9)], abs=1e-12)
+    assert [c[2] for c in steps[1:]] == pytest.approx([0.25e-3] * 8)
+    # a reversal steps once, at the sample
+    runner.process(InputSample(1.003, 0.0, -w, 100.0))
+    assert len([c for c in screw.calls if c[0] == "step"]) == 10
+    # an angle jump of 100 rev: MAX_SUBSTEPS steps, counted
+    runner.process(InputSample(1.004, -200 * math.pi, -w, 100.0))
+    assert len([c for c in screw.calls if c[0] == "step"]) == 10 + MAX_SUBSTEPS
+    assert runner.stats.long_jumps == 1

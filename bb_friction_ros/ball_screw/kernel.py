@@ -1038,6 +1038,158 @@ def solve_active_elastic(x, v, fhat, centres, sign, cst, k_load, k_axis, on_nut,
     return x, v, fhat, norm <= tol, it, norm, cur[3], cur[4], cur[7]
 
 
+@_jit
+def _solve_active_any(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
+                      grid, scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f,
+                      order, comp_a, comp_b, tol, max_it, max_rate, disp_limit):
+    """
+    ``solve_active`` (u of shape (1,): rigid) or ``solve_active_elastic`` (u (N,), ``order``).
+
+    The elastic load path is given by ``order`` of size N; a rigid nut and shaft by an empty
+    ``order``.  Returns the same tuple, with u as an array in both cases.
+    """
+    if order.shape[0]:
+        return solve_active_elastic(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut,
+                                    coef_s, coef_n, grid, scale, axial_load_n, rear, front, b_r,
+                                    b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b, tol, max_it,
+                                    max_rate, disp_limit)
+    xo, uo, fo, ok, it, norm, terms, per_contact, speed = solve_active(
+        x, u[0], fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid, scale,
+        axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, tol, max_it, max_rate,
+        disp_limit)
+    ua = np.empty(1)
+    ua[0] = uo
+    return xo, ua, fo, ok, it, norm, terms, per_contact, speed
+
+
+@_jit(exact=True)
+def solve_active_set(x, u, f_all, active, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
+                     coef_n, grid, scale, axial_load_n, pair_rear, pair_front, b_r, b_f, c_r, c_f,
+                     k_r, k_f, order, comp_a, comp_b, tol, max_it, max_rate, disp_limit,
+                     max_changes, budget):
+    """
+    ``EquilibriumSolver.solve`` compiled: Newton per active set, exact complementarity.
+
+    The same loop as the numpy reference (``solver.EquilibriumSolver.solve``), step for step
+    and bit for bit (compiled without fastmath): release the contacts with a negative force,
+    else close the open pairs whose rear ball orbits faster, until neither happens.
+    f_all: B2B forces per candidate pair in units of ``scale``; budget < 0: no iteration cap.
+    Returns (x, u, f_all, active, converged, budget_exhausted, iterations, norm, terms,
+    per_contact); u as in ``_solve_active_any``.
+    """
+    p = pair_rear.shape[0]
+    active = active.copy()
+    total_it = 0
+    ok = False
+    exhausted = False
+    norm = np.inf
+    terms = np.zeros((x.shape[0], 10))
+    per_contact = np.zeros((x.shape[0], 4, 3))
+    settled = False
+    for _ in range(max_changes):
+        idx = np.flatnonzero(active)
+        rear = pair_rear[idx]
+        front = pair_front[idx]
+        f0 = np.maximum(f_all[idx], 0.0)
+        left = max(budget - total_it, 0) if budget >= 0 else max_it
+        x, u, f_hat, ok, it, norm, terms, per_contact, _ = _solve_active_any(
+            x, u, f0, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid, scale,
+            axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b, tol,
+            min(max_it, left), max_rate, disp_limit)
+        total_it += it
+        f_all = np.zeros(p)
+        f_all[idx] = f_hat
+        if not ok:
+            exhausted = budget >= 0 and it >= left and math.isfinite(norm)
+            settled = True
+            break
+        if p == 0:
+            settled = True
+            break
+        released = False
+        for j in range(idx.shape[0]):
+            if f_hat[j] < -tol:
+                active[idx[j]] = False
+                released = True
+        closed = False
+        if not released:
+            for i in range(p):
+                if not active[i] and (x[pair_rear[i], 2] * sign
+                                      > x[pair_front[i], 2] * sign + tol):
+                    active[i] = True
+                    closed = True
+        if not (released or closed):
+            settled = True
+            break
+    if not settled:
+        ok = False
+    return x, u, f_all, active, ok, exhausted, total_it, norm, terms, per_contact
+
+
+@_jit(exact=True)
+def _solve_guess(x, u, forces, ring_active, pair_idx, centres, sign, cst, k_load, k_axis,
+                 on_nut, coef_s, coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f, c_r,
+                 c_f, k_r, k_f, order, comp_a, comp_b, tol, max_it, max_rate, disp_limit,
+                 max_changes, budget):
+    """``solve_active_set`` from one guess (x, u, forces per ring pair [N]) of ``warm_solve``."""
+    fg = forces[pair_idx]
+    active = np.empty(pair_idx.shape[0], dtype=np.bool_)
+    for i in range(pair_idx.shape[0]):
+        faster = x[rear[i], 2] * sign > x[front[i], 2] * sign
+        active[i] = (ring_active[pair_idx[i]] and fg[i] > 0.0) or faster
+    return solve_active_set(x.copy(), u.copy(), fg / scale, active, centres, sign, cst, k_load,
+                            k_axis, on_nut, coef_s, coef_n, grid, scale, axial_load_n, rear,
+                            front, b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b, tol,
+                            max_it, max_rate, disp_limit, max_changes, budget)
+
+
+@_jit(exact=True)
+def warm_solve(x, u, x_prev, u_prev, f_prev, d_psi_prev, forces, ring_active, d_psi, pair_idx,
+               centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid, scale,
+               axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b,
+               tol, max_it, max_rate, disp_limit, max_changes, budget):
+    """
+    Solve a warm step (``whole_screw.WholeScrew._warm_solve_numpy``, its reference).
+
+    Guesses in turn (only the first with an iteration budget): the secant prediction in
+    nut angle from the previous (x_prev, u_prev, f_prev over d_psi_prev; d_psi_prev = 0:
+    none), then the previous solution (x, u, forces per ring pair [N]).  Each starts with the
+    closed pairs whose predicted force stays positive plus the open pairs whose rear ball is
+    predicted faster.  Returns ``solve_active_set``'s tuple for the first guess that
+    converged or used up the budget (else the last), the summed iterations, and the B2B slip
+    speed of every candidate pair.
+    """
+    n_guess = 1
+    gx = np.empty((2,) + x.shape)
+    gu = np.empty((2,) + u.shape)
+    gf = np.empty((2,) + forces.shape)
+    if d_psi_prev != 0.0:
+        r = d_psi / d_psi_prev
+        if 0.0 < r <= 4.0:
+            gx[0] = x + r * (x - x_prev)
+            gu[0] = u + r * (u - u_prev)
+            gf[0] = forces + r * (forces - f_prev)
+            n_guess = 2
+    gx[n_guess - 1] = x
+    gu[n_guess - 1] = u
+    gf[n_guess - 1] = forces
+    if budget >= 0:
+        n_guess = 1
+    out = _solve_guess(gx[0], gu[0], gf[0], ring_active, pair_idx, centres, sign, cst, k_load,
+                       k_axis, on_nut, coef_s, coef_n, grid, scale, axial_load_n, rear, front,
+                       b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b, tol, max_it,
+                       max_rate, disp_limit, max_changes, budget)
+    iterations = out[6]
+    if n_guess == 2 and not (out[4] or out[5]):
+        out = _solve_guess(gx[1], gu[1], gf[1], ring_active, pair_idx, centres, sign, cst,
+                           k_load, k_axis, on_nut, coef_s, coef_n, grid, scale, axial_load_n,
+                           rear, front, b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b, tol,
+                           max_it, max_rate, disp_limit, max_changes, budget)
+        iterations += out[6]
+    speed = pair_speed(out[0], rear, front, b_r, b_f)
+    return out, iterations, speed
+
+
 def pack_constants(ball, extra_oversize_m=0.0):
     """
     Pack the kernels' constant vector ``cst`` from a ``single_ball.BallGrooveModel``.

@@ -55,6 +55,13 @@ def _solve_blocks(a, b):
         return np.linalg.solve(a + shift * eye, b)
 
 
+def kernel_terms(terms, per_contact):
+    """Return the kernels' (N, 10) ball and (N, 4, 3) contact terms as ``evaluate``'s dict."""
+    return {"force": terms[:, 0:3], "moment": terms[:, 3:6], "loss": terms[:, 6],
+            "nut_torque": terms[:, 7], "axial": terms[:, 8], "load": per_contact[..., 0],
+            "contact_loss": per_contact[..., 1], "angle": per_contact[..., 2]}
+
+
 @dataclass
 class Solution:
     """Result of one equilibrium solve (states normalised as in ``single_ball``)."""
@@ -105,6 +112,12 @@ class EquilibriumSolver:
         centres = self.ball.arc_centres(np.zeros(2), 0.0, 0.0)
         pair = np.array([0]), np.array([1])
         self._solve_active_kernel(x, 0.0, np.zeros(1), centres, 1.0, 1.0, 1.0, *pair, 0)
+        st = self.settings
+        none = np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0)
+        kernel.warm_solve(x, np.zeros(1), x, np.zeros(1), np.zeros(2), 0.0, np.zeros(2),
+                          np.zeros(2, dtype=bool), 0.0, np.zeros(1, dtype=np.int64), centres, 1.0,
+                          *self.kernel_constants(), 1.0, 1.0, *pair, *self.b2b.linear_terms(1.0),
+                          *none, float(st.tolerance), 0, float(st.max_step_rate), 1.0, 1, -1)
         kernel.ring_projection(np.array([0.0, 0.5]), 1.0, 10.0)
         kernel.ring_pairs(np.array([0.0, 0.5]), 1.0, 10.0, 0.0, 1.0)
         kernel.theta_centres(np.zeros(2), 0.0, 1.0, 0.0, 0.0, 1.0, 0.5)
@@ -249,7 +262,6 @@ class EquilibriumSolver:
         u is the per-ball nut displacement (N,) and ``kernel.solve_active_elastic`` solves.
         """
         st = self.settings
-        b = self.ball
         # The kernel does not check bounds: refuse mismatched arrays here rather than read
         # memory that is not theirs (which made results differ from run to run).
         n = np.shape(x)[0]
@@ -257,16 +269,11 @@ class EquilibriumSolver:
                                          >= n) or np.size(f_hat) != np.size(rear):
             raise ValueError(f"solve_active: {n} ball states, {np.shape(centres)[0]} "
                              f"centres, {np.size(rear)} pairs, {np.size(f_hat)} forces")
-        cst = self._cst.get(self.extra_oversize_m)
-        if cst is None:
-            cst = kernel.pack_constants(b, self.extra_oversize_m)
-            if len(self._cst) < 64:
-                self._cst[self.extra_oversize_m] = cst
-        disp_limit = max(self.disp_limit, self._approach_units(scale))
+        disp_limit = self.displacement_limit(scale)
         common = (np.ascontiguousarray(f_hat, dtype=float),
-                  np.ascontiguousarray(centres, dtype=float), float(sign), cst, self._k_load,
-                  self._k_axis, self._on_nut, self._coef[0], self._coef[1], self._grid,
-                  float(scale), float(axial_load_n), np.ascontiguousarray(rear, dtype=np.int64),
+                  np.ascontiguousarray(centres, dtype=float), float(sign),
+                  *self.kernel_constants(), float(scale), float(axial_load_n),
+                  np.ascontiguousarray(rear, dtype=np.int64),
                   np.ascontiguousarray(front, dtype=np.int64), *self.b2b.linear_terms(sign))
         limits = (float(st.tolerance), int(max_iterations), float(st.max_step_rate),
                   float(disp_limit))
@@ -277,10 +284,26 @@ class EquilibriumSolver:
             u = np.ascontiguousarray(np.broadcast_to(u, (x.shape[0],)), dtype=float)
             out = kernel.solve_active_elastic(x, u, *common, *elastic, *limits)
         x, u, f_hat, ok, it, norm, terms, per_contact, speed = out
-        t = {"force": terms[:, 0:3], "moment": terms[:, 3:6], "loss": terms[:, 6],
-             "nut_torque": terms[:, 7], "axial": terms[:, 8], "load": per_contact[..., 0],
-             "contact_loss": per_contact[..., 1], "angle": per_contact[..., 2]}
-        return x, u, f_hat, bool(ok), int(it), float(norm), t, speed
+        return x, u, f_hat, bool(ok), int(it), float(norm), kernel_terms(terms, per_contact), \
+            speed
+
+    def kernel_constants(self):
+        """
+        Return the kernels' constants (cst, k_load, k_axis, on_nut, map coefficients, grid).
+
+        ``cst`` depends on the current extra oversize (cold-start continuation).
+        """
+        cst = self._cst.get(self.extra_oversize_m)
+        if cst is None:
+            cst = kernel.pack_constants(self.ball, self.extra_oversize_m)
+            if len(self._cst) < 64:
+                self._cst[self.extra_oversize_m] = cst
+        return (cst, self._k_load, self._k_axis, self._on_nut, self._coef[0], self._coef[1],
+                self._grid)
+
+    def displacement_limit(self, scale):
+        """Trust-region limit of a Newton step in xi, zeta and u [LENGTH_SCALE_M]."""
+        return max(self.disp_limit, self._approach_units(scale))
 
     def solve_active(self, x, u, f_hat, centres, sign, axial_load_n, scale, rear, front,
                      max_iterations=None, elastic=None):
@@ -305,7 +328,7 @@ class EquilibriumSolver:
             dx, du, df = self._newton_step(t, res, axial, cons, gr, gf, scale, rear, front, n)
             # Trust region: near two-point contact the spin about the loaded diagonal is
             # weakly determined and a full step can run away.
-            disp_limit = max(self.disp_limit, self._approach_units(scale))
+            disp_limit = self.displacement_limit(scale)
             big = max(np.abs(dx[:, 2:]).max() / st.max_step_rate,
                       max(np.abs(dx[:, :2]).max(), abs(du)) / disp_limit)
             step = 1.0 / big if big > 1.0 else 1.0

@@ -65,8 +65,11 @@ from bb_friction_ros.ball_screw import geometry as geo
 from bb_friction_ros.ball_screw import kernel
 from bb_friction_ros.ball_screw.load_distribution import elastic_load_path
 from bb_friction_ros.ball_screw.screw_model import ScrewModel
+from bb_friction_ros.ball_screw.solver import Solution, kernel_terms
 
 _TINY = float(np.finfo(float).tiny)
+# kernel.warm_solve's load path of a rigid nut and shaft: no axial order, no compliances.
+_RIGID = (np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0))
 
 
 @dataclass
@@ -256,20 +259,12 @@ class WholeScrew:
         iterations = 0
         budget = self.config.solver.realtime_max_iterations or None
         if self._state is not None and self._state[2] == sign and self._state[3] == load_sign:
-            x, u = self._state[0], self._state[1]
-            guesses = self._guesses(d_psi)
-            for gx, gu, gf in guesses[:1] if budget else guesses:
-                # Closed pairs keep their predicted force > 0; open ones close if the rear
-                # ball is predicted faster (the active-set loop corrects either guess).
-                faster = gx[rear, 2] * sign > gx[front, 2] * sign
-                active = (self._active[pair_idx] & (gf[pair_idx] > 0.0)) | faster
-                sol = self.model.solver.solve(gx, gu, centres, sign, axial_load_n, scale, rear,
-                                              front, active, gf[pair_idx], budget, elastic)
-                iterations += sol.iterations
-                if sol.converged or sol.budget_exhausted:
-                    # Real-time mode: an unfinished iterate is returned, converged = False.
-                    prev = (x, u, self._forces, d_psi)
-                    break
+            warm = self._warm_solve if self.model.solver.use_kernel else self._warm_solve_numpy
+            sol, iterations = warm(d_psi, centres, sign, axial_load_n, scale, pair_idx, rear,
+                                   front, budget, elastic)
+            if sol.converged or sol.budget_exhausted:
+                # Real-time mode: an unfinished iterate is returned, converged = False.
+                prev = (self._state[0], self._state[1], self._forces, d_psi)
         if sol is None or not (sol.converged or sol.budget_exhausted):
             free = self.model.cold_solve(*shifts, sign, axial_load_n)
             ratio = free.x[:, 2] * sign
@@ -282,6 +277,66 @@ class WholeScrew:
         self._prev = prev
         return self._finish(sol, sign, omega_n, axial_load_n, theta, phi, pair_idx, rear, front,
                             t0)
+
+    def _warm_solve_numpy(self, d_psi, centres, sign, axial_load_n, scale, pair_idx, rear, front,
+                          budget, elastic):
+        """
+        Solve a warm step from the guesses in turn: the readable reference of ``_warm_solve``.
+
+        Returns (the first ``Solution`` that converged or used up the budget, else the last;
+        the iterations of all).  Runs the solver's own path (numpy, or the compiled Newton
+        per active set).
+        """
+        sol = None
+        iterations = 0
+        guesses = self._guesses(d_psi)
+        for gx, gu, gf in guesses[:1] if budget else guesses:
+            # Closed pairs keep their predicted force > 0; open ones close if the rear ball
+            # is predicted faster (the active-set loop corrects either guess).
+            faster = gx[rear, 2] * sign > gx[front, 2] * sign
+            active = (self._active[pair_idx] & (gf[pair_idx] > 0.0)) | faster
+            sol = self.model.solver.solve(gx, gu, centres, sign, axial_load_n, scale, rear,
+                                          front, active, gf[pair_idx], budget, elastic)
+            iterations += sol.iterations
+            if sol.converged or sol.budget_exhausted:
+                break
+        return sol, iterations
+
+    def _warm_solve(self, d_psi, centres, sign, axial_load_n, scale, pair_idx, rear, front,
+                    budget, elastic):
+        """
+        ``_warm_solve_numpy`` in one compiled call (``kernel.warm_solve``), bit for bit.
+
+        Measured need (issue 20): the Python around the compiled Newton (guesses, active
+        set, argument packing) cost about 90 us of a 320 us step at N = 37.
+        """
+        solver = self.model.solver
+        st = solver.settings
+        x, u = self._state[0], self._state[1]
+        shape = (self.n,) if elastic is not None else (1,)
+        u = np.ascontiguousarray(np.broadcast_to(u, shape), dtype=float)
+        if self._prev is not None:
+            xp, up, fp, dp = self._prev
+            up = np.ascontiguousarray(np.broadcast_to(up, shape), dtype=float)
+        else:
+            xp, up, fp, dp = x, u, self._forces, 0.0
+        path = elastic if elastic is not None else _RIGID
+        if x.shape != (self.n, 6) or xp.shape != x.shape or fp.shape != (self.n,):
+            # The kernel does not check bounds (see solver._solve_active_kernel).
+            raise ValueError(f"warm solve: state {x.shape}, previous {xp.shape}, forces "
+                             f"{fp.shape} for {self.n} balls")
+        out, iterations, speed = kernel.warm_solve(
+            x, u, xp, up, fp, float(dp), self._forces, self._active, d_psi, pair_idx, centres,
+            sign, *solver.kernel_constants(), scale, axial_load_n, rear, front,
+            *solver.b2b.linear_terms(sign), *path, st.tolerance, st.max_iterations,
+            st.max_step_rate, solver.displacement_limit(scale), st.max_active_set_changes,
+            budget if budget else -1)
+        x, u, f_all, active, ok, exhausted, it, norm, terms, per_contact = out
+        sol = Solution(x=x, u=u if elastic is not None else float(u[0]), forces=f_all * scale,
+                       active=active, converged=bool(ok), iterations=int(it),
+                       residual=float(norm), terms=kernel_terms(terms, per_contact),
+                       b2b_speed=speed, budget_exhausted=bool(exhausted))
+        return sol, int(iterations)
 
     def _guesses(self, d_psi):
         """
