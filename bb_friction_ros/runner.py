@@ -290,7 +290,7 @@ class ModelRunner:
         """
         Return True if ``process(sample)`` would step the model (or reset it).
 
-        Cheap; the live node answers samples with no step due at once, in its executor.
+        Cheap; the live node answers samples with no step due at once, in its input thread.
         """
         if self._state is None or self._last_stamp is None \
                 or sample.stamp_s < self._last_stamp:
