@@ -275,10 +275,10 @@ def test_rebuild_with_the_same_terms_keeps_their_clock():
 def test_falling_behind_takes_coarser_steps_and_recovers():
     """
     Issue 20, item 3: a skipped step doubles the schedule's step (once per step taken, up to
-    max_model_step_deg), steps taken coarser are counted, and after RELAX_AFTER_STEPS clean
-    steps the step halves again.  Replay never skips, so it never coarsens.
+    max_model_step_deg), steps taken coarser are counted, and after RELAX_AFTER_S of input
+    time with none skipped the step halves again.  Replay never skips, so it never coarsens.
     """
-    from bb_friction_ros.runner import RELAX_AFTER_STEPS
+    from bb_friction_ros.runner import RELAX_AFTER_S
     runner = ModelRunner(RecordingScrew(), model_rate_hz=1.0, model_step_deg=1.0,
                          max_model_step_deg=4.0)
     d = math.radians(1.0)
@@ -303,8 +303,13 @@ def test_falling_behind_takes_coarser_steps_and_recovers():
     steps = [p.stepped for p in feed(12, True)]
     assert steps == [True, False, False, False] * 3                    # every 4 deg now
     assert runner.stats.coarse_steps == 4 and runner.stats.skipped_steps == 4
-    feed(4 * RELAX_AFTER_STEPS, True)
+    n = int(RELAX_AFTER_S / 1e-3)
+    feed(n - 30, True)                                                 # last skip at 9 ms
+    assert runner.scale == 4.0                                         # not yet
+    feed(40, True)
     assert runner.scale == 2.0
+    feed(n, True)
+    assert runner.scale == 1.0
     assert runner.step_rad == pytest.approx(d)
 
 
