@@ -27,7 +27,7 @@ class NodeParameters:
     model_rate_hz: float = field(100.0, "Hz", "least whole-screw model steps per second of "
                                  "input time (the floor when the nut creeps or stands)",
                                  lo=1.0, hi=2000.0)
-    model_step_deg: float = field(3.6, "deg", "nut rotation between whole-screw model steps "
+    model_step_deg: float = field(1.8, "deg", "nut rotation between whole-screw model steps "
                                   "(bench/bench_convergence.py)", lo=0.05, hi=90.0)
     max_model_step_deg: float = field(36.0, "deg", "coarsest step the live model takes when "
                                       "it cannot keep up (counted in diagnostics)", lo=0.05,

@@ -11,16 +11,18 @@ so it steps by nut rotation: when the nut has turned ``model_step_deg`` since th
 at once when the direction of the nut motion changes (start, stop, reversal), and, as a
 floor when the nut creeps or stands, when the input stamps have advanced by one model period
 (``1 / model_rate_hz``).  A step advances the ball azimuths by the measured nut rotation since
-the last one.  Stamps that do not advance (a driver leaving ``header.stamp`` at 0) leave the
-floor no time: they are counted (``stats.stamp_stalls``), and a change of the axial load then
-steps at once.  Every nut-state sample gets a prediction from the latest model state
-(zero-order hold; its age in input time is reported), so the output keeps the input rate
-while the model steps at its own.
+the last one; when the inputs are further apart than the step (1 kHz input at 20 rev/s is
+7.2 deg per sample), the model steps along the line between the two samples, so its step
+size is the schedule's, not the input rate's (``stats.substeps``).  Stamps that do not
+advance (a driver leaving ``header.stamp`` at 0) leave the floor no time: they are counted
+(``stats.stamp_stalls``), and a change of the axial load then steps at once.  Every
+nut-state sample gets a prediction from the latest model state (zero-order hold; its age in
+input time is reported), so the output keeps the input rate while the model steps at its own.
 
 Falling behind (the live node only: replay always steps): a sample that cannot step
 (``process(sample, allow_step=False)``) is answered from the current state, and the schedule
 turns coarser, the step and the floor doubled (up to ``max_model_step_deg``), rather than
-building a backlog; after ``RELAX_AFTER_STEPS`` steps with none skipped it halves again.
+building a backlog; after ``RELAX_AFTER_S`` of input time with none skipped it halves again.
 Steps taken coarser are counted (``stats.coarse_steps``); only then do live and replay differ.
 
 Feedforward policy (a step that did not converge): the prediction keeps the model's raw
@@ -60,9 +62,14 @@ STAMP_RESOLUTION_S = 1e-6
 # w * t may come out a few ulp short of it; 1e-9 rad is far below any encoder's resolution.
 ANGLE_RESOLUTION_RAD = 1e-9
 # A schedule made coarser because the live model fell behind returns to half that step after
-# this many steps with none skipped (the load may have been a transient); a CPU that cannot
-# keep the finer step skips again at once and the step doubles back.
-RELAX_AFTER_STEPS = 200
+# this much input time with no step skipped (the load on the CPU may have been a transient).
+# Each try of a step the CPU cannot keep costs a backlog of one model period before the step
+# doubles back: counted in input time, not steps, so a node that cannot keep the fine step
+# pays it once per RELAX_AFTER_S (at 4000 steps/s a count of steps would retry 20x a second).
+RELAX_AFTER_S = 2.0
+# Sub-steps between two input samples at most: more is a jump of the angle (a gap in the
+# input or an encoder glitch), crossed in this many coarser steps rather than a burst of CPU.
+MAX_SUBSTEPS = 64
 
 
 @dataclass(frozen=True)
@@ -163,6 +170,8 @@ class RunnerStats:
     coarsenings: int = 0            # times the schedule was made coarser
     stamp_stalls: int = 0           # samples whose stamp equals the previous sample's
     term_restarts: int = 0          # empirical terms' clock and filter restarted mid-stream
+    substeps: int = 0               # model steps between two input samples (in model_steps)
+    long_jumps: int = 0             # angle jumps crossed in MAX_SUBSTEPS coarser steps
     resets: int = 0
     rejected: Counter = field(default_factory=Counter)   # by reason, inputs of both topics
     rejected_nut_state: int = 0     # nut-state samples never answered (in ``rejected`` too)
@@ -214,12 +223,13 @@ class ModelRunner:
         # two, at most max_model_step_deg / model_step_deg
         self.max_scale = max_model_step_deg / model_step_deg
         self.scale = 1.0
-        self._clean_steps = 0       # steps at this scale with none skipped
+        self._calm_since = None     # input stamp of the last skip, or of the last halving
         self._coarsened = False     # the scale went up since the last step
         self.stats = RunnerStats()
         self._last_stamp = None
         self._model_stamp = None
         self._model_angle = 0.0
+        self._model_velocity = 0.0
         self._model_load = 0.0
         self._model_direction = 0.0
         self._state = None
@@ -282,7 +292,7 @@ class ModelRunner:
         """
         Return True if ``process(sample)`` would step the model (or reset it).
 
-        Cheap; the live node answers samples with no step due at once, in its executor.
+        Cheap; the live node answers samples with no step due at once, in its input thread.
         """
         if self._state is None or self._last_stamp is None \
                 or sample.stamp_s < self._last_stamp:
@@ -347,11 +357,12 @@ class ModelRunner:
             # A reversal (or a start/stop) is due at once: Coulomb friction flips there, and
             # a held torque of the old sign is the worst feed-forward a controller can get.
             if allow_step:
+                self._substeps_to(sample)
                 self._take_step(sample, sample.stamp_s - self._model_stamp)
                 stepped = True
             else:
                 self.stats.skipped_steps += 1
-                self._coarsen()
+                self._coarsen(sample.stamp_s)
         self._last_stamp = sample.stamp_s
         st = self._state
         extra = 0.0
@@ -383,44 +394,79 @@ class ModelRunner:
                           sample.stamp_s - self._model_stamp, self._state_groups,
                           self._state_n_balls, stepped, ff, held)
 
+    def _substeps_to(self, sample):
+        """
+        Step through the angles between the last step and ``sample``, one model step apart.
+
+        Input samples may be further apart than the model step (at 20 rev/s, 1 kHz input
+        is 7.2 deg per sample): the model then steps along the straight line between the two
+        inputs (angle, velocity, load and stamp linear in between), so its step size is the
+        schedule's, not the input rate's.  Not across a change of direction: the path
+        between two samples of opposite directions is unknown (the reversal steps at once).
+        """
+        if _sign(sample.nut_velocity_rad_s) != self._model_direction \
+                or self._model_direction == 0.0:
+            return
+        turned = abs(sample.nut_angle_rad - self._model_angle)
+        n = math.ceil(turned / (self.step_rad * self.scale) - ANGLE_RESOLUTION_RAD)
+        if n <= 1:
+            return
+        if n > MAX_SUBSTEPS:
+            # a jump of the angle (a gap in the input, an encoder glitch): not motion the
+            # schedule can follow step by step; crossed in MAX_SUBSTEPS coarser steps
+            self.stats.long_jumps += 1
+            n = MAX_SUBSTEPS
+        a0, w0, f0, t0 = (self._model_angle, self._model_velocity, self._model_load,
+                          self._model_stamp)
+        da = sample.nut_angle_rad - a0
+        dw = sample.nut_velocity_rad_s - w0
+        df = sample.axial_load_n - f0
+        dt = sample.stamp_s - t0
+        for i in range(1, n):
+            r = i / n
+            between = InputSample(t0 + r * dt, a0 + r * da, w0 + r * dw, f0 + r * df)
+            self._step(between, dt / n, answered=False)
+            self.stats.substeps += 1
+        self._model_stamp = t0 + (n - 1) / n * dt
+
     def _take_step(self, sample, dt_s):
         """Step the model to ``sample`` and make it the schedule's reference."""
         self._state = self._step(sample, dt_s)
         self._model_stamp = sample.stamp_s
         self._model_angle = sample.nut_angle_rad
+        self._model_velocity = sample.nut_velocity_rad_s
         self._model_load = sample.axial_load_n
         self._model_direction = _sign(sample.nut_velocity_rad_s)
         if self.scale > 1.0:
             self.stats.coarse_steps += 1
-            if not self._coarsened:
-                self._clean_steps += 1
-                if self._clean_steps >= RELAX_AFTER_STEPS:
-                    # kept up for a while at this scale: try the finer step again
-                    self.scale = max(1.0, self.scale / 2.0)
-                    self._clean_steps = 0
+            if sample.stamp_s - self._calm_since >= RELAX_AFTER_S:
+                # kept up for a while at this scale: try the finer step again
+                self.scale = max(1.0, self.scale / 2.0)
+                self._calm_since = sample.stamp_s
         self._coarsened = False
 
-    def _coarsen(self):
+    def _coarsen(self, stamp_s):
         """Double the step (once per step taken, up to max): the live model fell behind."""
+        self._calm_since = stamp_s
         if self._coarsened or self.scale >= self.max_scale:
             return
         self.scale = min(2.0 * self.scale, self.max_scale)
-        self._clean_steps = 0
         self._coarsened = True
         self.stats.coarsenings += 1
 
-    def _step(self, sample, dt_s):
+    def _step(self, sample, dt_s, answered=True):
         t0 = time.perf_counter()
         res = self.screw.step(sample.nut_angle_rad, sample.nut_velocity_rad_s,
                               sample.axial_load_n, dt_s)
         self.stats.last_step_wall_s = time.perf_counter() - t0
-        # answered from for every input until the next step: convert once, here
-        self._state_groups = _groups(res.groups)
-        self._state_n_balls = int(np.size(res.azimuth_rad))
-        self._state_converged = bool(res.converged)
         self.stats.model_steps += 1
         if not res.converged:
             self.stats.nonconverged_steps += 1
+        if answered:    # a sub-step's state is never answered: nothing to convert
+            # answered from for every input until the next step: convert once, here
+            self._state_groups = _groups(res.groups)
+            self._state_n_balls = int(np.size(res.azimuth_rad))
+            self._state_converged = bool(res.converged)
         return res
 
     def _update_held(self, total_nm, nut_velocity_rad_s):

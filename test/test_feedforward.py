@@ -279,8 +279,10 @@ class ScriptedScrew:
 
 def test_nonconverged_steps_never_reach_the_feedforward():
     """Prediction keeps the raw unconverged number, flagged; feedforward holds or is 0."""
+    # a step every 10 ms (the time floor; model_step_deg out of the way): the policy is tested
     runner = ModelRunner(ScriptedScrew([(0.21, True), (-58.0, False), (8.0, False),
-                                        (-0.2, False), (0.0, True), (-0.22, True)]), 100.0)
+                                        (-0.2, False), (0.0, True), (-0.22, True)]), 100.0,
+                         model_step_deg=90.0)
     w = 6.0
     preds = [runner.process(InputSample(t, w * t, w, 20000.0))
              for t in (0.0, 0.01, 0.015, 0.02)]

@@ -132,7 +132,7 @@ class Probe:
 
 def test_profile_published_at_every_model_step(ros_context):
     """One FeedforwardProfile per model step, starting at that step's prediction."""
-    probe = Probe(ros_context, {"profile_points": 4})
+    probe = Probe(ros_context, {"profile_points": 4, "model_step_deg": 3.6})
     try:
         probe.load(1500.0)
         w = 2 * math.pi
@@ -160,8 +160,10 @@ def test_feedforward_never_carries_a_nonconverged_torque(ros_context):
     """Finding 2: prediction says converged=false with the raw number; feedforward holds."""
     from bb_friction_ros.runner import ModelRunner
     # (the look-ahead steps a copy of the screw: the trailing entries are for the last copy)
+    # a step every 10 ms (the time floor; model_step_deg out of the way): the policy is tested
     runner = ModelRunner(ScriptedScrew([(0.21, True), (-58.0, False), (8.0, False),
-                                        (-0.3, False)] + [(0.0, True)] * 4), 100.0)
+                                        (-0.3, False)] + [(0.0, True)] * 4), 100.0,
+                         model_step_deg=90.0)
     probe = Probe(ros_context, runner=runner)
     try:
         probe.load(20000.0)

@@ -199,3 +199,86 @@ def named_correctly(analysis, hidden_names):
             if {swap.get(n, n) for n in got} == want:
                 return True
     return False
+
+
+# ------------------------------------------------------------------------------------------
+# Hidden physical parameters (issue 21): the recording is made by the model itself with a
+# parameter the config given to the workflow does not have.
+
+# The issue's drive: speeds +-0.5-2 rev/s with reversals under 700-1700 N, 20 s.
+PHYSICAL_CYCLE_REV_S = (0.5, -0.5, 1.0, -1.0, 2.0, -2.0, 0.75, -0.75, 1.5, -1.5)
+# Hidden physical ranges (edge units, as the config writes them), drawn uniformly.
+PHYSICAL_RANGES = {
+    "contact_angle_deviation": ("errors", "theta_amplitude_deg", (1.5, 3.5)),
+    "friction_coefficient": ("material", "friction_coefficient", (0.07, 0.15)),
+    "preload": ("geometry", "ball_oversize_um", (1.5, 3.5)),
+}
+# The config the workflow is given: the bundled screw without a contact-angle deviation.
+PHYSICAL_BASE_OVERRIDES = {"errors": {"theta_amplitude_deg": 0.0}}
+
+
+def physical_trajectory(duration_s=20.0, rate_hz=50.0):
+    """Return the DemoRecording of the issue's drive (no effects, no noise)."""
+    segment = duration_s / len(PHYSICAL_CYCLE_REV_S)
+    return DemoRecording(state_rate_hz=rate_hz, load_rate_hz=rate_hz, accel_rad_s2=250.0,
+                         segments_rev_s=PHYSICAL_CYCLE_REV_S, segment_duration_s=segment,
+                         load_mean_n=1200.0, load_amplitude_n=500.0, load_period_s=3.7,
+                         viscous_drag_nm_s_per_rad=0.0, seal_drag_nm=0.0, noise_nm=0.0)
+
+
+def model_config(directory, overrides, base=None):
+    """
+    Write a model file: the bundled (or ``base``) config with nested ``overrides``; return it.
+
+    The name is keyed by the content, so the baseline cache of each config is reused.
+    """
+    from bb_friction_ros.model_file import read_model_file, write_model_file
+    import yaml
+    section, terms = read_model_file(base or bundled_config("ball_screw.yaml"))
+    merged = _deep_merge(section, overrides)
+    key = hashlib.sha256(yaml.safe_dump(merged, sort_keys=True).encode()).hexdigest()[:16]
+    path = Path(directory) / f"model_{key}.yaml"
+    if not path.is_file():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".tmp")
+        write_model_file(tmp, merged, terms, "# synthetic model config (discrepancy tests)\n")
+        tmp.replace(path)
+    return path
+
+
+def draw_physical(name, rng):
+    """Return {section: {param: value}} of a hidden physical parameter (PHYSICAL_RANGES)."""
+    section, param, (lo, hi) = PHYSICAL_RANGES[name]
+    return {section: {param: float(rng.uniform(lo, hi))}}
+
+
+def physical_case(traj, hidden, terms, noise_nm, rng, cache_dir, model_rate_hz=50.0,
+                  base_overrides=PHYSICAL_BASE_OVERRIDES):
+    """
+    Return (Recording, base config path, noise): a recording of the model with ``hidden``.
+
+    The measured torque is the model's with the hidden parameters (``hidden``: nested
+    overrides over the base config) plus the empirical ``terms`` plus white noise; the
+    prediction is the base config's, which is what the workflow is given.
+    """
+    base_cfg = model_config(cache_dir, base_overrides)
+    hidden_cfg = model_config(cache_dir, _deep_merge(base_overrides, hidden))
+    given = baseline(traj, base_cfg, model_rate_hz, cache_dir)
+    truth = baseline(traj, hidden_cfg, model_rate_hz, cache_dir)
+    r = given.recording
+    noise = rng.normal(0.0, noise_nm, len(r))
+    accel = reference_acceleration(r) if "inertia" in terms.names else None
+    extra = terms.torque_nm(r.t_run_s, r.nut_angle_rad, r.nut_velocity_rad_s,
+                            r.axial_load_n, accel) if len(terms) else 0.0
+    rec = dataclasses.replace(r, torque_meas_nm=truth.recording.torque_pred_nm + extra + noise,
+                              info=dict(r.info, hidden=list(terms.names),
+                                        hidden_physical=hidden))
+    return rec, base_cfg, noise
+
+
+def _deep_merge(a, b):
+    """Return mapping ``a`` with the two-level mapping ``b`` merged over it (copies)."""
+    out = {k: dict(v) if isinstance(v, dict) else v for k, v in a.items()}
+    for k, v in b.items():
+        out[k] = {**out.get(k, {}), **v}
+    return out

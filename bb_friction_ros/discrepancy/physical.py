@@ -1,0 +1,655 @@
+"""
+Physical candidates of the discrepancy selection (issue 21): the model's own parameters.
+
+When a real screw disagrees with the model, the paper's own parameters are the first
+suspects: the contact-angle deviation theta of the grooves (it drives ball-to-ball contact),
+the friction coefficient mu and the preload (ball oversize).  Each is a candidate beside the
+empirical library:
+
+- ``contact_angle_deviation``: ``errors.theta_amplitude_deg`` (cycles per revolution and
+  phase are kept from the config: a recording of a few revolutions rarely pins them down);
+- ``friction_coefficient``: ``material.friction_coefficient``;
+- ``preload``: ``geometry.ball_oversize_um``.
+
+A trial value is a model run over the recording: the replay path's ``ModelRunner`` around a
+``WholeScrew`` of the base config with the one value changed.  Its column is the change of
+the physics torque, d(p) = T(p) - T(p0), with coefficient 1 (not a free amplitude: the
+parameter itself is what is fitted).  The physical candidate then competes with the empirical
+terms under the same BIC and cross-validation: for a trial value the empirical best-subset
+selection runs on r - d(p), and the physical parameter counts as one more parameter (and
+one more ``bic_threshold``) in the penalised BIC.  "None" is a valid answer, and empirical
+terms may be fitted on top of the physical change.
+
+Cost (each trial is a model run): the runs only visit the samples at which the runner steps
+the model (``ModelRunner`` steps on a schedule of input stamps and direction changes that
+does not depend on the parameters; every other sample holds the last step's torque), so a
+trial costs the model's steps, not the recording's samples.  The schedule comes from one full
+run of the base config through the runner (also the reference T(p0)).  A coarse bracket per
+candidate (``PhysicalSettings``) runs first, in parallel on a Dask LocalCluster when
+``workers`` > 1; the best candidate is refined by successive parabolic interpolation of its
+profile (a model run per step, at most ``refine_runs``); the 95 % interval is read from the
+profile's parabola, where n' ln(RSS/n) rises by 3.84 (chi-square, one parameter).
+
+Identifiability, said out loud (``identifiability``): a change of mu scales the whole model
+torque, which is nearly the ``load_dependent`` column (k |W| sign w) when the torque is
+nearly proportional to the load; an angle ripple can mimic part of a B2B signature.  After
+the choice the twin is swapped in and refitted; a BIC difference below ``bic_threshold``
+names the pair as one ambiguous effect (the model's own parameter is kept: it is the
+physical reading, and the one the node can run).
+"""
+
+import dataclasses
+import math
+import time
+
+import numpy as np
+
+from bb_friction_ros.config import field, from_mapping
+
+# chi-square(1) 95 % quantile: the profile-likelihood interval of one parameter
+CHI2_1_95 = 3.841458820694124
+
+
+@dataclasses.dataclass(frozen=True)
+class PhysicalSettings:
+    """Settings of the physical candidates (``discrepancy: physical:``)."""
+
+    enabled: bool = True
+    theta_max_deg: float = field(5.0, "deg", "largest theta amplitude of the bracket (the "
+                                 "bracket runs from 0 in theta_bracket_points steps)",
+                                 lo=0.0, lo_open=True, hi=10.0)
+    theta_bracket_points: int = field(5, "1", "theta amplitudes of the bracket", lo=2, hi=50)
+    theta_resolution_deg: float = field(0.01, "deg", "refinement stops when the parabola "
+                                        "moves the theta amplitude by less", lo=0.0,
+                                        lo_open=True)
+    mu_ratio_lo: float = field(0.6, "1", "smallest friction coefficient of the bracket, as a "
+                               "fraction of the config's", lo=0.0, lo_open=True, hi=1.0)
+    mu_ratio_hi: float = field(1.6, "1", "largest friction coefficient of the bracket, as a "
+                               "multiple of the config's", lo=1.0, hi=10.0)
+    mu_bracket_points: int = field(4, "1", "friction coefficients of the bracket (besides "
+                                   "the config's)", lo=2, hi=50)
+    mu_resolution: float = field(0.0002, "1", "refinement stops when the parabola moves mu "
+                                 "by less", lo=0.0, lo_open=True)
+    preload_max_um: float = field(6.0, "um", "largest ball oversize of the bracket (from "
+                                  "the config's value)", lo=0.0, lo_open=True, hi=100.0)
+    preload_bracket_points: int = field(4, "1", "ball oversizes of the bracket (besides the "
+                                        "config's)", lo=2, hi=50)
+    preload_resolution_um: float = field(0.01, "um", "refinement stops when the parabola "
+                                         "moves the oversize by less", lo=0.0, lo_open=True)
+    refine_runs: int = field(3, "1", "model runs of the parabolic refinement per candidate "
+                             "refined", lo=0, hi=50)
+    max_nonconverged_fraction: float = field(0.01, "1", "a trial whose model steps fail to "
+                                             "converge more often than this is not used",
+                                             lo=0.0, hi=1.0)
+    workers: int = field(1, "1", "Dask LocalCluster worker processes for the trial runs "
+                         "(1: in this process)", lo=1, hi=256)
+
+
+def load_physical_settings(mapping, path="discrepancy.physical"):
+    """Return PhysicalSettings from a mapping (validated; the dotted key is named)."""
+    return from_mapping(PhysicalSettings, mapping, path)
+
+
+@dataclasses.dataclass(frozen=True)
+class PhysicalKind:
+    """One model parameter as a candidate: its YAML place, unit and bracket."""
+
+    name: str                 # effect name in summary.json
+    section: str              # ball_screw section in the model file
+    param: str                # its key there, in the edge unit reported
+    unit: str
+    meaning: str
+
+    def base_value(self, cfg):
+        """Return the config's value in the reported unit."""
+        if self.name == "contact_angle_deviation":
+            return math.degrees(cfg.errors.theta_amplitude_rad)
+        if self.name == "friction_coefficient":
+            return float(cfg.material.friction_coefficient)
+        return cfg.geometry.ball_oversize_m * 1e6
+
+    def bracket(self, base, s):
+        """Return the coarse trial values (the config's own value left out)."""
+        if self.name == "contact_angle_deviation":
+            grid = np.linspace(0.0, s.theta_max_deg, s.theta_bracket_points)
+            tol = s.theta_resolution_deg
+        elif self.name == "friction_coefficient":
+            grid = base * np.linspace(s.mu_ratio_lo, s.mu_ratio_hi, s.mu_bracket_points + 1)
+            tol = s.mu_resolution
+        else:
+            grid = base + np.linspace(0.0, s.preload_max_um, s.preload_bracket_points + 1)
+            tol = s.preload_resolution_um
+        return tuple(float(v) for v in grid if abs(v - base) > tol)
+
+    def resolution(self, s):
+        """Return the refinement tolerance in the reported unit."""
+        return {"contact_angle_deviation": s.theta_resolution_deg,
+                "friction_coefficient": s.mu_resolution}.get(self.name,
+                                                             s.preload_resolution_um)
+
+    def limits(self):
+        """Return the admissible range of the value (the config's validated range)."""
+        return {"contact_angle_deviation": (0.0, 10.0), "friction_coefficient": (1e-6, 1.0),
+                "preload": (-10.0, 100.0)}[self.name]
+
+    def override(self, value):
+        """Return the nested config override that sets the value."""
+        return {self.section: {self.param: float(value)}}
+
+
+PHYSICAL = {k.name: k for k in (
+    PhysicalKind("contact_angle_deviation", "errors", "theta_amplitude_deg", "deg",
+                 "amplitude of the grooves' contact-angle deviation theta(phi); drives "
+                 "ball-to-ball contact (paper Sec. 3.4, Fig. 19)"),
+    PhysicalKind("friction_coefficient", "material", "friction_coefficient", "1",
+                 "Coulomb coefficient mu of the groove and ball-to-ball contacts"),
+    PhysicalKind("preload", "geometry", "ball_oversize_um", "um",
+                 "preload: ball diameter minus the diameter that just touches all four "
+                 "arcs"),
+)}
+# The empirical term each physical candidate is nearly collinear with (identifiability).
+TWINS = {"friction_coefficient": "load_dependent", "contact_angle_deviation": "angle_ripple",
+         "preload": "seal_drag"}
+
+
+# ------------------------------------------------------------------------------------------
+# Model runs at trial values (the replay path's runner, stepping only where it steps)
+
+
+@dataclasses.dataclass
+class Schedule:
+    """The samples at which the runner steps the model, and which step answers each sample."""
+
+    step_inputs: np.ndarray   # (k, 4): stamp, nut angle, nut velocity, axial load
+    run_start: np.ndarray     # (k,) bool: the runner reset before this step
+    answer: np.ndarray        # (n,) index of the step whose state answers sample i; -1: none
+    runner_args: tuple        # (model_rate_hz, model_step_deg, max_model_step_deg)
+
+
+@dataclasses.dataclass
+class TrialRun:
+    """The physics torque of one trial value at every sample of the recording."""
+
+    value: float
+    total_nm: np.ndarray
+    b2b_nm: np.ndarray
+    converged: np.ndarray
+    wall_s: float
+
+
+def runner_args(replay_settings):
+    """Return the runner's schedule settings of a NodeParameters, as the replay path uses."""
+    return (float(replay_settings.model_rate_hz), float(replay_settings.model_step_deg),
+            float(replay_settings.max_model_step_deg))
+
+
+def _runner(config_path, overrides, args):
+    """Build a ModelRunner of the physics alone (no empirical terms) at ``overrides``."""
+    from bb_friction_ros.ball_screw.whole_screw import WholeScrew
+    from bb_friction_ros.model_file import load_ball_screw
+    from bb_friction_ros.runner import ModelRunner
+    cfg = load_ball_screw(config_path, overrides)
+    rate, step_deg, max_step_deg = args
+    runner = ModelRunner(WholeScrew(cfg), rate, None, step_deg, max_step_deg)
+    # as build_runner: the same warm-up, so the runs equal the replay path's
+    runner.warm_up(cfg.operation.axial_load_n, cfg.operation.nut_velocity_rad_s)
+    return runner
+
+
+def base_run(rec, config_path, args):
+    """
+    Run every sample of ``rec`` through the runner at the base config: the schedule and T(p0).
+
+    Return (Schedule, TrialRun).  This is the replay path exactly (the runner answers each
+    sample from its latest step); the trial runs feed only the stepping samples.
+    """
+    from bb_friction_ros.runner import InputSample
+    t0 = time.perf_counter()
+    runner = _runner(config_path, None, args)
+    n = len(rec)
+    answer = np.full(n, -1, dtype=np.int64)
+    total, b2b = np.full(n, np.nan), np.full(n, np.nan)
+    conv = np.zeros(n, dtype=bool)
+    steps, starts = [], []
+    resets = runner.stats.resets
+    fresh = True                  # the runner starts from no state: first, reset, error
+    for i in range(n):
+        s = InputSample(float(rec.t_s[i]), float(rec.nut_angle_rad[i]),
+                        float(rec.nut_velocity_rad_s[i]), float(rec.axial_load_n[i]))
+        p = runner.process(s)
+        if p is None:             # a model error: the runner reset itself
+            fresh = True
+            continue
+        if p.stepped:
+            steps.append((s.stamp_s, s.nut_angle_rad, s.nut_velocity_rad_s, s.axial_load_n))
+            starts.append(fresh or runner.stats.resets != resets)
+            resets, fresh = runner.stats.resets, False
+        answer[i] = len(steps) - 1
+        total[i], b2b[i], conv[i] = p.torque_total_nm, p.torque_b2b_nm, p.converged
+    sched = Schedule(np.array(steps, dtype=float).reshape(-1, 4), np.array(starts, bool),
+                     answer, tuple(args))
+    return sched, TrialRun(math.nan, total, b2b, conv, time.perf_counter() - t0)
+
+
+def step_run(config_path, overrides, step_inputs, run_start, args):
+    """
+    Run the runner over the stepping samples only; return (total, b2b, converged) per step.
+
+    Every fed sample steps (it did at the base config: the schedule depends on stamps and
+    directions only); a run start resets the runner as the base run's reset did.  Top-level
+    so that Dask workers can run it.
+    """
+    from bb_friction_ros.runner import InputSample
+    runner = _runner(config_path, overrides, args)
+    k = len(step_inputs)
+    total, b2b = np.full(k, np.nan), np.full(k, np.nan)
+    conv = np.zeros(k, dtype=bool)
+    for j in range(k):
+        if run_start[j]:
+            runner.reset()
+        t, a, w, f = step_inputs[j]
+        p = runner.process(InputSample(float(t), float(a), float(w), float(f)))
+        if p is None:
+            continue
+        total[j], b2b[j], conv[j] = p.torque_total_nm, p.torque_b2b_nm, p.converged
+    return total, b2b, conv
+
+
+def _expand(sched, per_step):
+    out = np.full(sched.answer.size, np.nan)
+    ok = sched.answer >= 0
+    out[ok] = per_step[sched.answer[ok]]
+    return out
+
+
+class TrialRunner:
+    """
+    Runs the model at trial values over one recording; counts the runs and their time.
+
+    ``workers`` > 1: the runs of a batch go to a Dask LocalCluster of that many single-threaded
+    worker processes (started on first use, closed by ``close``).
+    """
+
+    def __init__(self, rec, config_path, args, workers=1):
+        """Make the base run (the schedule and T(p0)) over ``rec``."""
+        self.config_path = str(config_path)
+        self.workers = int(workers)
+        self.schedule, self.base = base_run(rec, config_path, args)
+        self.runs = 1
+        self.wall_s = self.base.wall_s
+        self._client = None
+        self._cluster = None
+
+    def _dask(self):
+        if self._client is None:
+            from dask.distributed import Client, LocalCluster
+            from bb_friction_ros.sweep.engine import LOCALHOST
+            self._cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1,
+                                         processes=True, host=LOCALHOST,
+                                         dashboard_address=None)
+            self._client = Client(self._cluster)
+        return self._client
+
+    def run(self, trials):
+        """
+        Return a TrialRun per (PhysicalKind, value) of ``trials``: one model run each.
+
+        A batch of more than one run goes to the Dask cluster when ``workers`` > 1.
+        """
+        trials = [(k, float(v)) for k, v in trials]
+        if not trials:
+            return []
+        t0 = time.perf_counter()
+        sched = self.schedule
+        if self.workers > 1 and len(trials) > 1:
+            client = self._dask()
+            steps = client.scatter(sched.step_inputs, broadcast=True)
+            starts = client.scatter(sched.run_start, broadcast=True)
+            futures = [client.submit(step_run, self.config_path, k.override(v), steps, starts,
+                                     sched.runner_args, pure=False) for k, v in trials]
+            results = client.gather(futures)
+        else:
+            results = [step_run(self.config_path, k.override(v), sched.step_inputs,
+                                sched.run_start, sched.runner_args) for k, v in trials]
+        wall = time.perf_counter() - t0
+        self.runs += len(trials)
+        self.wall_s += wall
+        return [TrialRun(v, _expand(sched, tot), _expand(sched, b2b),
+                         _expand(sched, conv.astype(float)) > 0.5, wall / len(trials))
+                for (_, v), (tot, b2b, conv) in zip(trials, results)]
+
+    def close(self):
+        """Close the Dask cluster, if one was started."""
+        if self._client is not None:
+            self._client.close()
+            self._cluster.close()
+            self._client = self._cluster = None
+
+
+# ------------------------------------------------------------------------------------------
+# The selection with physical candidates
+
+
+@dataclasses.dataclass
+class PhysicsContext:
+    """What the physical candidates need besides the recording: the model and its rate."""
+
+    config_path: object
+    runner_args: tuple        # runner_args(replay settings): the replay path's schedule
+    settings: PhysicalSettings = PhysicalSettings()
+
+
+@dataclasses.dataclass
+class Outcome:
+    """The empirical selection on r - d(p) at one trial value (or on r: ``value`` None)."""
+
+    kind: object              # PhysicalKind or None
+    value: float
+    terms: object             # TermSet
+    trace: list
+    ctx: object               # selection.SelectionContext
+    score: float              # penalised BIC, the physical parameter counted
+    run: TrialRun = None
+    delta_fit: np.ndarray = None
+
+    @property
+    def members(self):
+        """Return the chosen empirical (Candidate, nonlinear value) pairs."""
+        return self.ctx.best[self.ctx.chosen].members
+
+
+@dataclasses.dataclass
+class PhysicalChoice:
+    """A chosen physical effect: the parameter's value, its interval and its columns."""
+
+    kind: PhysicalKind
+    value: float
+    base_value: float
+    interval_95: tuple
+    run: TrialRun             # the model at ``value`` over the whole recording
+    delta_nm: np.ndarray      # T(value) - T(base) at the usable samples
+
+    def effect(self):
+        """Return the summary.json entry."""
+        lo, hi = self.interval_95
+        p = self.kind.param
+        return {"name": self.kind.name, "kind": "physical", "params": {p: self.value},
+                "units": {p: self.kind.unit},
+                "interval_95": {p: [lo, hi]},
+                "config_value": {p: self.base_value},
+                "config_key": f"ball_screw.{self.kind.section}.{p}"}
+
+
+@dataclasses.dataclass
+class PhysicalSearch:
+    """The whole physical search: what was tried, what was chosen, what it cost."""
+
+    chosen: PhysicalChoice = None
+    trials: list = dataclasses.field(default_factory=list)    # rows for summary/report
+    runs: int = 0
+    wall_s: float = 0.0
+    workers: int = 1
+    identifiability: list = dataclasses.field(default_factory=list)
+    base: TrialRun = None     # the model at the config's values (all samples of the input)
+    usable: np.ndarray = None    # mask of the usable samples in the input recording
+    none_score: float = math.nan
+
+    def as_dict(self):
+        """Return summary.json → ``physical``."""
+        return {"model_runs": self.runs, "model_run_wall_s": self.wall_s,
+                "workers": self.workers,
+                "chosen": self.chosen.effect() if self.chosen else None,
+                "penalised_bic_none": self.none_score,
+                "trials": self.trials, "identifiability": self.identifiability}
+
+
+def _penalised(trace, extra_params, settings, tau, n):
+    row = [t for t in trace if t["chosen"]][0]
+    n_eff = n / max(tau, 1.0)
+    return row["penalised_bic"] + extra_params * (math.log(n_eff) + settings.bic_threshold)
+
+
+def _profile(members, x, r, tau):
+    """
+    Return the RSS of ``members`` fitted to ``r``: the profile of a physical value.
+
+    RSS, not its logarithm: a parameter whose column is nearly linear in it (mu) has an RSS
+    quadratic in it, which the refinement's parabola then fits exactly.
+    """
+    from bb_friction_ros.discrepancy.selection import fit
+    return fit(members, x, r, None, tau).rss
+
+
+def _vertex(p, y):
+    """Return (vertex, curvature a of y = a (x - v)^2 + c) of the parabola through 3 points."""
+    (x0, x1, x2), (y0, y1, y2) = p, y
+    den = (x0 - x1) * (x0 - x2) * (x1 - x2)
+    if den == 0.0:
+        return None, 0.0
+    a = (x2 * (y1 - y0) + x1 * (y0 - y2) + x0 * (y2 - y1)) / den
+    b = (x2 * x2 * (y0 - y1) + x1 * x1 * (y2 - y0) + x0 * x0 * (y1 - y2)) / den
+    if not a > 0.0:
+        return None, a
+    return -b / (2.0 * a), a
+
+
+def _three_around_best(points):
+    """Return the best point and its neighbours in value (sorted), or None at an edge."""
+    pts = sorted(points)
+    k = int(np.argmin([y for _, y in pts]))
+    if k == 0 or k == len(pts) - 1:
+        return None, pts[k]
+    return pts[k - 1:k + 2], pts[k]
+
+
+def select_with_physics(physics, rec_all, ok, fit_mask, r, x_fit, settings, skip, fixed, tau):
+    """
+    Select as selection.select does, with the physical candidates beside the library.
+
+    ``rec_all``: the input recording (every sample drives the model), ``ok``: its usable
+    samples (``r``, ``fit_mask`` are over them).  Return (TermSet, trace, SelectionContext,
+    PhysicalSearch); the PhysicalSearch's ``chosen`` is None when no physical effect is
+    chosen (the TermSet is then exactly selection.select's).
+    """
+    from bb_friction_ros.discrepancy.selection import cv_rmse, select
+    ps = physics.settings
+    r_fit = r[fit_mask]
+    n_fit = r_fit.size
+
+    def outcome(kind, run, delta):
+        d_fit = delta[fit_mask] if delta is not None else 0.0
+        terms, trace, ctx = select(x_fit, r_fit - d_fit, settings, skip=skip, fixed=fixed,
+                                   tau=tau)
+        score = _penalised(trace, 0 if kind is None else 1, settings, tau, n_fit)
+        return Outcome(kind, None if run is None else run.value, terms, trace, ctx, score,
+                       run, None if delta is None else d_fit)
+
+    none = outcome(None, None, None)
+    runner = TrialRunner(rec_all, physics.config_path, physics.runner_args, ps.workers)
+    search = PhysicalSearch(workers=ps.workers, base=runner.base, usable=ok,
+                            none_score=none.score)
+    try:
+        from bb_friction_ros.model_file import load_model_file
+        cfg = load_model_file(physics.config_path)[0]
+        base_t = runner.base.total_nm[ok]
+        bases = {k.name: k.base_value(cfg) for k in PHYSICAL.values()}
+        tried = [(k, v) for k in PHYSICAL.values() for v in k.bracket(bases[k.name], ps)]
+        runs = runner.run(tried)
+        outcomes = {name: [] for name in PHYSICAL}
+
+        def consider(kind, run):
+            conv = run.converged[ok]
+            bad = float(np.mean(~conv | ~np.isfinite(run.total_nm[ok])))
+            row = {"candidate": kind.name, "param": kind.param, "value": run.value,
+                   "nonconverged_fraction": bad}
+            if bad > ps.max_nonconverged_fraction:
+                row.update(penalised_bic=None, terms=None,
+                           note="not used: the model did not converge")
+                search.trials.append(row)
+                return None
+            delta = np.nan_to_num(run.total_nm[ok] - base_t)
+            o = outcome(kind, run, delta)
+            row.update(penalised_bic=o.score, terms=list(o.terms.names))
+            search.trials.append(row)
+            outcomes[kind.name].append(o)
+            return o
+
+        for (kind, _), run in zip(tried, runs):
+            consider(kind, run)
+        best = min((o for os_ in outcomes.values() for o in os_), key=lambda o: o.score,
+                   default=None)
+        if best is None:
+            return none.terms, none.trace, none.ctx, search
+        kind = best.kind
+        best = _refine(kind, best, outcomes[kind.name], bases[kind.name], runner, consider,
+                       x_fit, r_fit, tau, ps, none)
+        interval = _interval(kind, best, outcomes[kind.name], bases[kind.name], x_fit, r_fit,
+                             tau, none)
+        if best.score < none.score and \
+                cv_rmse(best.members, x_fit, r_fit - best.delta_fit, settings.cv_folds) < \
+                cv_rmse(none.members, x_fit, r_fit, settings.cv_folds):
+            delta = np.nan_to_num(best.run.total_nm[ok] - base_t)
+            search.chosen = PhysicalChoice(kind, best.value, bases[kind.name], interval,
+                                           best.run, delta)
+            search.identifiability = identifiability(search.chosen, best, none, x_fit, r_fit,
+                                                     settings, tau, skip, fixed)
+            chosen = best
+        else:
+            search.identifiability = _unchosen_twins(outcomes, none, settings)
+            chosen = none
+    finally:
+        runner.close()
+        search.runs, search.wall_s = runner.runs, runner.wall_s
+    return chosen.terms, chosen.trace, chosen.ctx, search
+
+
+def _held(kind, outcome):
+    """
+    Return the empirical terms held while the value of ``kind`` is profiled.
+
+    The outcome's chosen terms without the physical candidate's twin (``TWINS``): held, the
+    twin would absorb the parameter's own change and flatten its profile (mu and
+    load_dependent are nearly one column).
+    """
+    return tuple(m for m in outcome.members if m[0].name != TWINS[kind.name])
+
+
+def _refine(kind, best, tried, base_value, runner, consider, x, r, tau, ps, none):
+    """
+    Successive parabolic interpolation of the profile of ``kind``'s value (model runs).
+
+    The profile is the RSS with the empirical terms chosen at the best bracket point held
+    (its twin left out, ``_held``); each step runs the model at the parabola's vertex
+    through the best three points.
+    Return the best Outcome after the runs (its empirical terms re-selected).
+    """
+    members = _held(kind, best)
+    lo, hi = kind.limits()
+    points = {base_value: _profile(members, x, r, tau)}
+    for o in tried:
+        points[o.value] = _profile(members, x, r - o.delta_fit, tau)
+    for _ in range(ps.refine_runs):
+        three, top = _three_around_best(list(points.items()))
+        if three is None:
+            # the best is at an edge of what was tried: step beyond it by the last spacing
+            vals = sorted(points)
+            k = vals.index(top[0])
+            step = (vals[1] - vals[0]) if k == 0 else (vals[-1] - vals[-2])
+            new = top[0] - step if k == 0 else top[0] + step
+        else:
+            v, _ = _vertex([p for p, _ in three], [y for _, y in three])
+            if v is None:
+                break
+            new = min(max(v, three[0][0]), three[2][0])
+        new = min(max(new, lo), hi)
+        if min(abs(new - p) for p in points) < kind.resolution(ps):
+            break
+        run = runner.run([(kind, new)])[0]
+        o = consider(kind, run)
+        if o is None:
+            break
+        points[new] = _profile(members, x, r - o.delta_fit, tau)
+    return min(tried, key=lambda o: o.score)
+
+
+def _interval(kind, best, tried, base_value, x, r, tau, none):
+    """
+    Return the 95 % interval of the value: where -2 ln L rises by 3.84 (chi-square, 1).
+
+    The profile (the RSS, the chosen empirical terms held) is the parabola through the best
+    trial and its neighbours in value; (None, None) where the trials do not bracket it.
+    """
+    members = _held(kind, best)
+    points = [(base_value, _profile(members, x, r, tau))]
+    points += [(o.value, _profile(members, x, r - o.delta_fit, tau)) for o in tried]
+    three, top = _three_around_best(points)
+    if three is None:
+        return (None, None)
+    v, a = _vertex([p for p, _ in three], [y for _, y in three])
+    if v is None:
+        return (None, None)
+    # -2 ln L = n' ln(RSS/n) rises by n' dRSS / RSS_min near the minimum
+    n_eff = r.size / max(tau, 1.0)
+    rss_min = max(min(y for _, y in three), 1e-300)
+    half = math.sqrt(CHI2_1_95 * rss_min / (n_eff * a))
+    return (best.value - half, best.value + half)
+
+
+def identifiability(choice, best, none, x, r, settings, tau, skip, fixed):
+    """
+    Say which near-twin the chosen physical effect was told from, and on what evidence.
+
+    The twin (``TWINS``: load_dependent for mu, angle_ripple for theta, seal_drag for the
+    preload) replaces the physical change, with the same empirical terms on top, fitted to
+    the plain residual; the BIC of the two models is compared.  A difference below
+    ``bic_threshold``: one ambiguous effect (the physical parameter is kept).  The best
+    empirical-only model is compared as well.
+    """
+    from bb_friction_ros.discrepancy.selection import candidates, fit
+    name = choice.kind.name
+    twin = TWINS[name]
+    cands = {c.name: c for c in candidates(x, settings, skip, fixed)}
+    n_eff = r.size / max(tau, 1.0)
+    f_phys = fit(best.members, x, r - best.delta_fit, None, tau)
+    bic_phys = f_phys.bic + math.log(n_eff)
+    out = []
+    if twin in cands:
+        members = tuple(m for m in best.members if m[0].name != twin) + ((cands[twin], None),)
+        g = fit(members, x, r, None, tau)
+        delta = g.bic - bic_phys if g.physical else math.inf
+        separated = delta >= settings.bic_threshold
+        if separated:
+            text = (f"{name} rather than the empirical {twin}: BIC {delta:.1f} worse with "
+                    f"{twin} in its place")
+        else:
+            text = (f"{name} and {twin} are one ambiguous effect here (BIC difference "
+                    f"{delta:.1f} < {settings.bic_threshold}); {name}, the model's own "
+                    "parameter, was kept")
+        out.append({"pair": [name, twin], "chosen": name, "bic_difference":
+                    delta if math.isfinite(delta) else None, "separated": bool(separated),
+                    "statement": text})
+    gap = none.score - best.score
+    emp = ", ".join(none.terms.names) or "no term"
+    out.append({"pair": [name, "best empirical model"], "chosen": name,
+                "bic_difference": gap, "separated": bool(gap >= settings.bic_threshold),
+                "statement": f"{name} rather than the best empirical-only model ({emp}): "
+                             f"penalised BIC {gap:.1f} lower"})
+    return out
+
+
+def _unchosen_twins(outcomes, none, settings):
+    """When no physical effect is chosen, name a physical twin the data cannot exclude."""
+    out = []
+    for name, twin in TWINS.items():
+        if twin not in none.terms.names or not outcomes[name]:
+            continue
+        best = min(outcomes[name], key=lambda o: o.score)
+        gap = best.score - none.score
+        if gap < settings.bic_threshold:
+            out.append({"pair": [twin, name], "chosen": twin, "bic_difference": gap,
+                        "separated": False,
+                        "statement": f"{twin} and {name} ({best.value:.4g}) are one "
+                                     f"ambiguous effect here (penalised BIC difference "
+                                     f"{gap:.1f} < {settings.bic_threshold}); {twin} fitted "
+                                     "better and was kept"})
+    return out
