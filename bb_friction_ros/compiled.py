@@ -31,8 +31,8 @@ try:
         nnan/ninf: the line searches test for non-finite residuals.  ``exact=True``
         (``@jit(exact=True)``): no fastmath at all, for code that must round exactly as the
         numpy code it replaces (a fused multiply-add differs in the last bit).  nogil: the
-        live node's executor thread takes and answers inputs while the model thread is
-        inside a solve.
+        live node's input thread takes and answers inputs while the model thread is inside
+        a solve.
         """
         if fn is None:
             return lambda f: jit(f, exact)

@@ -214,11 +214,6 @@ def validate(obj, path):
         check(path)
 
 
-def to_mapping(obj):
-    """Plain-dict form of a config dataclass (SI keys), e.g. for JSON reports."""
-    return dataclasses.asdict(obj)
-
-
 class _DuplicateKey(ValueError):
     pass
 

@@ -9,7 +9,8 @@ predictions.  Each ``check_*`` asserts, for one model output:
 - finiteness of every number it reports;
 - power balance: the drive power equals the sum of the friction losses (energy is neither
   made nor lost in a quasi-static solve);
-- sum of parts: the total friction equals ball-to-groove + ball-to-ball (+ empirical terms);
+- sum of parts: a prediction's total equals ball-to-groove + ball-to-ball + empirical terms
+  (for a model step alone this is the power balance divided by omega_N, so not checked twice);
 - sign: losses and contact forces are never negative, friction opposes the motion;
 - symmetry (``assert_mirror``): mirrored inputs give equal or sign-reversed outputs.
 
@@ -157,8 +158,9 @@ def check_step(r, rel=SCREW_POWER_REL):
     """
     One whole-screw step (``StepResult``, Sec. 3.4).
 
-    omega_N T_f = sum of losses >= 0; T_f = T_b2g + T_b2b; B2B forces >= 0 and each contact
-    group lists one force fewer than its balls; the B2B torque is zero without a group.
+    omega_N T_f = sum of losses >= 0; B2B forces >= 0 and each contact group lists one force
+    fewer than its balls; the B2B torque is zero without a group.  T_f = T_b2g + T_b2b is not
+    asserted apart: the parts are the losses over omega_N, so it is the power balance again.
     """
     assert r.converged
     assert_finite(torque_total_nm=r.torque_total_nm, torque_b2g_nm=r.torque_b2g_nm,
@@ -168,7 +170,6 @@ def check_step(r, rel=SCREW_POWER_REL):
     assert r.loss_w >= 0.0
     if r.loss_w > 0.0:
         assert_power_balance(r.drive_power_w, r.loss_w, rel)
-        assert_sum_of_parts(r.torque_total_nm, (r.torque_b2g_nm, r.torque_b2b_nm), rel)
     else:
         assert r.torque_total_nm == 0.0 and r.drive_power_w == 0.0
     assert np.all(r.b2b_forces_n >= 0.0)

@@ -377,16 +377,6 @@ def refine(f, x, r, cache=None, tau=1.0):
     return fit(members, x, r, cache, tau)
 
 
-def best_grid_fit(subset, gram, tau):
-    """Return the best physical Fit of the terms ``subset`` over the grids, or None."""
-    best = None
-    for nls in itertools.product(*(c.grid for c in subset)):
-        f = gram.fit(tuple(zip(subset, nls)), tau)
-        if f.physical and (best is None or f.bic < best.bic):
-            best = f
-    return best
-
-
 def select(x, r, settings, skip=(), fixed=None, tau=1.0):
     """
     Select terms explaining residual ``r`` at fit inputs ``x`` (an empirical_terms.Inputs).

@@ -29,7 +29,6 @@ import numpy as np
 from bb_friction_ros.config import ConfigError, validate
 
 OK, INVALID, NONCONVERGED, FAILED = "ok", "invalid", "nonconverged", "failed"
-STATUSES = (OK, INVALID, NONCONVERGED, FAILED)
 
 # Distinct configs whose models (friction maps, Hertz constants) a worker thread keeps; a sweep
 # over a config field rebuilds a model only when that field's value is new.

@@ -1,0 +1,125 @@
+"""
+friction_node start-up: launch to "ready", warm and cold numba cache, against a bare rclpy node.
+
+For each run the ``friction_node`` console script is started and timed until its "ready"
+log line (model built and warm; ``live.process_age_s`` in the line is the node's own
+figure), then stopped with SIGINT.  The baseline is ``bench/thin_node.py`` (a bare rclpy node
+with the same interface), timed until its subscription is matched by this process, which is
+when it can take input.  "cold" runs the node with an
+empty ``NUMBA_CACHE_DIR`` (every kernel compiled at start-up); "warm" uses the normal cache.
+The machine's load is printed: absolute times on a shared 2-core machine are noisy; compare
+medians in one run.
+
+Run: .venv/bin/python bench/bench_startup.py [--runs 5] [--cold-runs 1]
+"""
+
+import argparse
+import os
+import signal
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+
+from bb_friction_ros.interface import local_domain_id
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+READY_TIMEOUT_S = 120.0
+
+
+def time_to_ready(env):
+    """Start friction_node; return (wall seconds to the ready line, the line)."""
+    exe = os.path.join(os.path.dirname(sys.executable), "friction_node")
+    t0 = time.perf_counter()
+    proc = subprocess.Popen([exe], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                            text=True)
+    found = []
+    done = threading.Event()
+
+    def read():
+        for line in proc.stdout:
+            if "ready" in line and not found:
+                found.append((time.perf_counter() - t0, line.strip()))
+                done.set()
+        done.set()
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    try:
+        done.wait(READY_TIMEOUT_S)
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+    if not found:
+        raise RuntimeError(f"friction_node printed no ready line (exit {proc.returncode})")
+    return found[0]
+
+
+def time_thin(env):
+    """Start the bare rclpy node; return wall seconds until its input is matched."""
+    import rclpy
+    from rclpy.node import Node
+    from rclpy.qos import qos_profile_sensor_data
+    from sensor_msgs.msg import JointState
+    from bb_friction_ros import interface
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    node = Node(f"startup_probe_{os.getpid()}", context=context)
+    pub = node.create_publisher(JointState, interface.NUT_STATE, qos_profile_sensor_data)
+    t0 = time.perf_counter()
+    proc = subprocess.Popen([sys.executable, os.path.join(HERE, "thin_node.py")], env=env)
+    try:
+        while pub.get_subscription_count() == 0:
+            if time.perf_counter() - t0 > READY_TIMEOUT_S:
+                raise RuntimeError("thin node never subscribed")
+            time.sleep(0.005)
+        return time.perf_counter() - t0
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=10)
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def main():
+    """Time warm and cold start-ups and the bare node; print medians and the load."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[1])
+    ap.add_argument("--runs", type=int, default=5, help="warm-cache runs (and thin runs)")
+    ap.add_argument("--cold-runs", type=int, default=1, help="runs with an empty numba cache")
+    args = ap.parse_args()
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    os.environ.setdefault("ROS_DOMAIN_ID", str(local_domain_id()))
+    env = os.environ.copy()
+    time_to_ready(env)                        # fills the numba cache if it is empty
+    load0 = os.getloadavg()[0]
+    warm, thin, own = [], [], []
+    for _ in range(args.runs):
+        wall, line = time_to_ready(env)
+        warm.append(wall)
+        own.append(line)
+        thin.append(time_thin(env))
+    cold = []
+    for _ in range(args.cold_runs):
+        with tempfile.TemporaryDirectory() as cache:
+            cold.append(time_to_ready({**env, "NUMBA_CACHE_DIR": cache})[0])
+    print(f"friction_node launch to ready, warm numba cache: median "
+          f"{statistics.median(warm):.2f} s (runs: {', '.join(f'{t:.2f}' for t in warm)})")
+    print(f"  its own line: {own[len(own) // 2]}")
+    print(f"bare rclpy node (bench/thin_node.py) launch to subscribed: median "
+          f"{statistics.median(thin):.2f} s; friction_node / bare "
+          f"{statistics.median(warm) / statistics.median(thin):.2f}")
+    if cold:
+        print(f"friction_node launch to ready, cold numba cache: median "
+              f"{statistics.median(cold):.2f} s ({len(cold)} runs): the compile costs "
+              f"{statistics.median(cold) - statistics.median(warm):.2f} s")
+    print(f"machine load (1 min) at start / end: {load0:.2f} / {os.getloadavg()[0]:.2f}")
+
+
+if __name__ == "__main__":
+    main()
