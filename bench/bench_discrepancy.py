@@ -524,16 +524,28 @@ def physical_section(args):
             true = hidden[section][param]
         got = choice.kind.name if choice else None
         ok_rmse, reducible = rmse_ok(a, noise)
+        # the hidden physical change itself: a theta below its B2B onset changes the torque
+        # by less than the noise, and no method can name it
+        extra = terms.torque_nm(rec.t_run_s, rec.nut_angle_rad, rec.nut_velocity_rad_s,
+                                rec.axial_load_n) if len(terms) else 0.0
+        phys = rec.torque_meas_nm - noise - rec.torque_pred_nm
+        phys = phys - (extra if not args.mismatch else sum(
+            (distorted_torque(t, rec) for t in terms.terms), np.zeros(len(rec))))
+        n_fit = int(np.floor((1.0 - settings.holdout_fraction) * len(rec)))
+        effect_rms = float(np.sqrt(np.mean(phys[:n_fit] ** 2)))
+        noise_std = float(np.std(noise))
         row = {"hidden": kind, "true": true, "extra": terms.names, "named": got,
                "value": choice.value if choice else None, "terms": a.terms.names,
                "runs": a.physical.runs + a.physical.validation_runs, "wall": wall,
                "rmse_ok": ok_rmse, "reducible": reducible,
-               "ambiguous": [x["pair"] for x in a.ambiguities if not x["separated"]]}
+               "ambiguous": [x["pair"] for x in a.ambiguities if not x["separated"]],
+               "snr": effect_rms / noise_std}
         rows.append(row)
         print(f"  hidden {kind or '(empirical only)'} {'' if true is None else f'{true:.4g}'}"
               f" + {', '.join(terms.names) or '-'}: named {got or '-'}"
               f"{'' if choice is None else f' {choice.value:.4g}'} + "
-              f"{', '.join(a.terms.names) or '-'}; {row['runs']} runs, {wall:.1f} s; "
+              f"{', '.join(a.terms.names) or '-'}; physical effect rms / noise "
+              f"{row['snr']:.2f}; {row['runs']} runs, {wall:.1f} s; "
               f"held-out reducible {reducible * 1e3:.2f} mN m, 80 % removed: {ok_rmse}",
               flush=True)
     phys = [r for r in rows if r["hidden"]]
@@ -541,6 +553,12 @@ def physical_section(args):
     named = [r for r in phys if r["named"] == r["hidden"]]
     print(f"named: {len(named)}/{len(phys)} = {len(named) / max(len(phys), 1):.0%} (goal "
           ">= 90 %)")
+    seen = [r for r in phys if r["snr"] >= 1.0]
+    print(f"named where the hidden change's rms (fit part) is at least the noise std: "
+          f"{sum(r['named'] == r['hidden'] for r in seen)}/{len(seen)}")
+    pair = [r for r in phys if r["named"] != r["hidden"]
+            and any(r["hidden"] in p for p in r["ambiguous"])]
+    print(f"not named but reported as one ambiguous pair with its twin: {len(pair)}")
     for kind in ph.PHYSICAL:
         sub = [r for r in named if r["hidden"] == kind]
         if not sub:

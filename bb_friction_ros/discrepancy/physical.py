@@ -809,12 +809,12 @@ def b2b_share(run, usable):
     return share, (float(np.nansum(np.abs(b2b))) / groove if groove > 0 else math.nan)
 
 
-def _explained(a, delta):
-    """Share of the held-out residual's mean square removed by the physical change alone."""
-    hold = ~a.fit_mask
-    r = a.residual_nm[hold]
+def _explained(a, delta, part=None):
+    """Share of the residual's mean square removed by the physical change alone."""
+    sel = slice(None) if part is None else part
+    r = a.residual_nm[sel]
     ms = float(np.mean(r ** 2))
-    return 1.0 - float(np.mean((r - delta[hold]) ** 2)) / ms if ms > 0 else math.nan
+    return 1.0 - float(np.mean((r - delta[sel]) ** 2)) / ms if ms > 0 else math.nan
 
 
 def _g(v, digits=3):
@@ -832,6 +832,7 @@ def statement(a):
         "95 % interval not bracketed by the trials"
     paren = f" ({ci}; the config says {_g(choice.base_value)}{u})"
     explained = _explained(a, choice.delta_nm)
+    explained_hold = _explained(a, choice.delta_nm, ~a.fit_mask)
     _, added = b2b_share(choice.run, a.physical.usable)
     _, added_base = b2b_share(a.physical.base, a.physical.usable)
     value = f"{_g(choice.value)}{u}"
@@ -839,7 +840,8 @@ def statement(a):
                                        f"of about {value}",
             "friction_coefficient": f"A friction coefficient of about {value}",
             "preload": f"A preload of about {value} ball oversize"}[choice.kind.name]
-    return (f"{what}{paren} explains {explained:.0%} of the held-out residual; B2B friction "
+    return (f"{what}{paren} explains {explained:.0%} of the residual ({explained_hold:.0%} "
+            "of the held-out part's, where it was not fitted); B2B friction "
             f"adds {added:.0%} to the friction torque of this recording (with the config's "
             f"value: {added_base:.0%}).")
 
