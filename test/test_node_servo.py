@@ -17,6 +17,7 @@ import time
 import pytest
 from rclpy.parameter import Parameter
 
+from bb_friction_ros import interface
 from bb_friction_ros.bags import Event
 from bb_friction_ros.config import ConfigError
 from bb_friction_ros.node import FrictionNode
@@ -84,15 +85,16 @@ class Probe:
         self.io = Node("servo_probe", context=context)
         rel = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
         self.preds, self.ff, self.profiles, self.diags = [], [], [], []
-        self.io.create_subscription(FrictionPrediction, "friction/prediction",
+        self.io.create_subscription(FrictionPrediction, interface.PREDICTION,
                                     self.preds.append, rel)
-        self.io.create_subscription(Float64MultiArray, "friction/feedforward",
+        self.io.create_subscription(Float64MultiArray, interface.FEEDFORWARD,
                                     lambda m: self.ff.append(m.data[0]), rel)
-        self.io.create_subscription(FeedforwardProfile, "friction/feedforward_profile",
+        self.io.create_subscription(FeedforwardProfile, interface.PROFILE,
                                     self.profiles.append, rel)
-        self.io.create_subscription(DiagnosticArray, "/diagnostics", self.diags.append, rel)
-        self.pub_state = self.io.create_publisher(JointState, "nut_state", rel)
-        self.pub_load = self.io.create_publisher(WrenchStamped, "axial_load", rel)
+        self.io.create_subscription(DiagnosticArray, interface.DIAGNOSTICS, self.diags.append,
+                                    rel)
+        self.pub_state = self.io.create_publisher(JointState, interface.NUT_STATE, rel)
+        self.pub_load = self.io.create_publisher(WrenchStamped, interface.AXIAL_LOAD, rel)
         self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.node)
         self.executor.add_node(self.io)
