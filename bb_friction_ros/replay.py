@@ -17,13 +17,16 @@ header stamp does not make a 6-second bag last 2e9 s (issue 23 #20).
 """
 
 from array import array
+from contextlib import contextmanager
 import csv
 import json
 import math
 from pathlib import Path
 import shutil
+import signal
 import struct
 import sys
+import threading
 import time
 
 import numpy as np
@@ -302,8 +305,9 @@ def replay(bag, out, config=None, settings=NodeParameters(), topics=Topics(), pr
         empirical = runner.terms is not None
         outbag = _OutputBag(out / BAG_DIR, src.connections) if write_bag else None
         try:
-            summary = _stream(src, runner, assembler, out, measured, empirical, outbag,
-                              progress)
+            with _interrupt_between_messages() as interrupted:
+                summary = _stream(src, runner, assembler, out, measured, empirical, outbag,
+                                  progress, interrupted)
         except KeyboardInterrupt:
             _write_summary(out, {"complete": False, "bag": str(bag),
                                  "reason": "interrupted: prediction.csv and bag/ hold only "
@@ -325,6 +329,36 @@ def replay(bag, out, config=None, settings=NodeParameters(), topics=Topics(), pr
         if summary["samples"] == 0:
             raise NothingAccepted(nothing_accepted_message(src, runner.stats, settings))
     return summary
+
+
+@contextmanager
+def _interrupt_between_messages():
+    """
+    Let Ctrl-C stop the stream between two messages, never inside the model.
+
+    A KeyboardInterrupt raised inside a model step can come out of the numerical code as
+    another exception, which the runner counts as a ``model_error`` and goes on: the replay
+    then ran to its end (seen in test_ctrl_c_leaves_no_stale_summary_and_exits_130).  So
+    SIGINT only sets a flag here, and the stream raises KeyboardInterrupt at the next
+    message; a second Ctrl-C raises at once.  Only in the main thread (where Python runs
+    signal handlers), and not when SIGINT is ignored (a background job).
+    """
+    flag = []
+    if threading.current_thread() is not threading.main_thread() \
+            or signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        yield flag
+        return
+
+    def on_sigint(signum, frame):
+        if flag:
+            raise KeyboardInterrupt
+        flag.append(signum)
+
+    old = signal.signal(signal.SIGINT, on_sigint)
+    try:
+        yield flag
+    finally:
+        signal.signal(signal.SIGINT, old)
 
 
 def _write_summary(out, summary):
@@ -352,7 +386,8 @@ def _remove_earlier_outputs(bag, out):
         (out / BAG_DIR).unlink()
 
 
-def _stream(src, runner, assembler, out, measured, empirical, outbag, progress):
+def _stream(src, runner, assembler, out, measured, empirical, outbag, progress,
+            interrupted=()):
     series = _Series(measured)
     aligner = MeasuredAligner() if measured else None
     sq_err, n_err = 0.0, 0
@@ -377,6 +412,8 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress):
                     n_err += 1
 
         for conn, log_ns, raw, ev in src.messages(all_topics=outbag is not None):
+            if interrupted:
+                raise KeyboardInterrupt
             if bar is not None:
                 bar.update()
             if outbag is not None:
@@ -415,6 +452,9 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress):
         "samples": series.rows,
         "rejected": dict(stats.rejected),
         "resets": stats.resets,
+        # the shared runner's schedule (issue 20) and stamp stalls (issue 23, finding 2)
+        "model_substeps": stats.substeps,
+        "stamp_stalls": stats.stamp_stalls,
         "model_steps": stats.model_steps,
         "nonconverged_steps": stats.nonconverged_steps,
         "duration_s": span,
@@ -430,6 +470,11 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress):
             "unmatched_predictions": aligner.unmatched_predictions,
             "unmatched_measured": aligner.unmatched_measured}
         summary["warnings"] = aligner.warnings()
+    if stats.stamp_stalls:
+        summary["warnings"] = list(summary.get("warnings", [])) + [
+            f"{stats.stamp_stalls} nut_state samples carry the previous sample's stamp "
+            "(header.stamp not advancing): the model stepped on nut angle, direction and "
+            "load only"]
     if series.rows:
         plot_replay(out, series)
     series.close()
