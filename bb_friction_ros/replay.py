@@ -452,6 +452,9 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress,
         "samples": series.rows,
         "rejected": dict(stats.rejected),
         "resets": stats.resets,
+        # the shared runner's schedule (issue 20) and stamp stalls (issue 23, finding 2)
+        "model_substeps": stats.substeps,
+        "stamp_stalls": stats.stamp_stalls,
         "model_steps": stats.model_steps,
         "nonconverged_steps": stats.nonconverged_steps,
         "duration_s": span,
@@ -467,6 +470,11 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress,
             "unmatched_predictions": aligner.unmatched_predictions,
             "unmatched_measured": aligner.unmatched_measured}
         summary["warnings"] = aligner.warnings()
+    if stats.stamp_stalls:
+        summary["warnings"] = list(summary.get("warnings", [])) + [
+            f"{stats.stamp_stalls} nut_state samples carry the previous sample's stamp "
+            "(header.stamp not advancing): the model stepped on nut angle, direction and "
+            "load only"]
     if series.rows:
         plot_replay(out, series)
     series.close()

@@ -139,7 +139,15 @@ def evaluate_balls(x, u, u_ball, centres, sign, cst, k_load, k_axis, on_nut, coe
             nz = dzv / dist
             delta = dist - free
             pos = delta > 0.0
-            dpos = delta if pos else 0.0
+            if not pos:
+                # An open contact (q = 0) adds exact zeros to every residual and Jacobian
+                # entry (all terms carry q, mu q or dq = 0): skip its friction map (a quarter
+                # of the contacts without preload: 25 % of an evaluation, measured).
+                per_contact[i, k, 0] = 0.0
+                per_contact[i, k, 1] = 0.0
+                per_contact[i, k, 2] = math.atan2(_ANGLE_SIGN[k] * nz, abs(nx))
+                continue
+            dpos = delta
             sq = math.sqrt(dpos)
             q = kl * dpos * sq
             a = ka * np.cbrt(q)
@@ -1070,8 +1078,8 @@ def solve_active_set(x, u, f_all, active, centres, sign, cst, k_load, k_axis, on
     """
     ``EquilibriumSolver.solve`` compiled: Newton per active set, exact complementarity.
 
-    The same loop as the numpy reference (``solver.EquilibriumSolver.solve``), step for step
-    and bit for bit (compiled without fastmath): release the contacts with a negative force,
+    The same loop as the numpy reference (``solver.EquilibriumSolver.solve``), step for step,
+    its own arithmetic compiled without fastmath: release the contacts with a negative force,
     else close the open pairs whose rear ball orbits faster, until neither happens.
     f_all: B2B forces per candidate pair in units of ``scale``; budget < 0: no iteration cap.
     Returns (x, u, f_all, active, converged, budget_exhausted, iterations, norm, terms,

@@ -305,10 +305,12 @@ class WholeScrew:
     def _warm_solve(self, d_psi, centres, sign, axial_load_n, scale, pair_idx, rear, front,
                     budget, elastic):
         """
-        ``_warm_solve_numpy`` in one compiled call (``kernel.warm_solve``), bit for bit.
+        ``_warm_solve_numpy`` in one compiled call (``kernel.warm_solve``), same arithmetic.
 
         Measured need (issue 20): the Python around the compiled Newton (guesses, active
-        set, argument packing) cost about 90 us of a 320 us step at N = 37.
+        set, argument packing) cost about 90 us of a 320 us step at N = 37.  Bit for bit
+        the reference when both run from one numba cache (test_compiled_step says why
+        not always).
         """
         solver = self.model.solver
         st = solver.settings
