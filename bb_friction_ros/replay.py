@@ -8,9 +8,9 @@ grow with the recording.  Writes ``prediction.csv``, ``summary.json``, PNG plots
 a rosbag2 (mcap) with the input topics copied and the node's output topics, for Foxglove,
 PlotJuggler or ``ros2 bag play``.
 
-Into an ``--out`` used before, the earlier run's ``summary.json``, plot and ``bag/`` are
-removed first (``bag/`` also with ``--no-bag``), so nothing stale sits beside the new
-outputs; ``summary.json`` is written last with ``"complete": true``, or with
+Into an ``--out`` used before, the earlier run's ``summary.json``, ``prediction.csv``, plot
+and ``bag/`` are removed first (``bag/`` also with ``--no-bag``), so nothing stale sits beside
+the new outputs; ``summary.json`` is written last with ``"complete": true``, or with
 ``"complete": false`` if the run is interrupted (issue 23 #16, #17).  ``duration_s`` is the
 recording's span in log time (when the recorder received the messages): one far-future
 header stamp does not make a 6-second bag last 2e9 s (issue 23 #20).
@@ -378,7 +378,7 @@ def _remove_earlier_outputs(bag, out):
     if src == own_bag or own_bag in src.parents:
         raise BagError(f"--out {out}: the input bag {bag} is replay's own output bag "
                        f"{out / BAG_DIR}, which a replay replaces; pass another --out")
-    for name in (SUMMARY_FILE, PLOT_FILE):
+    for name in (SUMMARY_FILE, PLOT_FILE, "prediction.csv"):
         (out / name).unlink(missing_ok=True)
     if own_bag.is_dir() and not own_bag.is_symlink():
         shutil.rmtree(own_bag)
@@ -452,6 +452,9 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress,
         "samples": series.rows,
         "rejected": dict(stats.rejected),
         "resets": stats.resets,
+        # the shared runner's schedule (issue 20) and stamp stalls (issue 23, finding 2)
+        "model_substeps": stats.substeps,
+        "stamp_stalls": stats.stamp_stalls,
         "model_steps": stats.model_steps,
         "nonconverged_steps": stats.nonconverged_steps,
         "duration_s": span,
@@ -467,6 +470,11 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress,
             "unmatched_predictions": aligner.unmatched_predictions,
             "unmatched_measured": aligner.unmatched_measured}
         summary["warnings"] = aligner.warnings()
+    if stats.stamp_stalls:
+        summary["warnings"] = list(summary.get("warnings", [])) + [
+            f"{stats.stamp_stalls} nut_state samples carry the previous sample's stamp "
+            "(header.stamp not advancing): the model stepped on nut angle, direction and "
+            "load only"]
     if series.rows:
         plot_replay(out, series)
     series.close()

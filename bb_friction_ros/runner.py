@@ -22,7 +22,7 @@ input time is reported), so the output keeps the input rate while the model step
 Falling behind (the live node only: replay always steps): a sample that cannot step
 (``process(sample, allow_step=False)``) is answered from the current state, and the schedule
 turns coarser, the step and the floor doubled (up to ``max_model_step_deg``), rather than
-building a backlog; after ``RELAX_AFTER_STEPS`` steps with none skipped it halves again.
+building a backlog; after ``RELAX_AFTER_S`` of input time with none skipped it halves again.
 Steps taken coarser are counted (``stats.coarse_steps``); only then do live and replay differ.
 
 Feedforward policy (a step that did not converge): the prediction keeps the model's raw
@@ -62,9 +62,11 @@ STAMP_RESOLUTION_S = 1e-6
 # w * t may come out a few ulp short of it; 1e-9 rad is far below any encoder's resolution.
 ANGLE_RESOLUTION_RAD = 1e-9
 # A schedule made coarser because the live model fell behind returns to half that step after
-# this many steps with none skipped (the load may have been a transient); a CPU that cannot
-# keep the finer step skips again at once and the step doubles back.
-RELAX_AFTER_STEPS = 200
+# this much input time with no step skipped (the load on the CPU may have been a transient).
+# Each try of a step the CPU cannot keep costs a backlog of one model period before the step
+# doubles back: counted in input time, not steps, so a node that cannot keep the fine step
+# pays it once per RELAX_AFTER_S (at 4000 steps/s a count of steps would retry 20x a second).
+RELAX_AFTER_S = 2.0
 # Sub-steps between two input samples at most: more is a jump of the angle (a gap in the
 # input or an encoder glitch), crossed in this many coarser steps rather than a burst of CPU.
 MAX_SUBSTEPS = 64
@@ -221,7 +223,7 @@ class ModelRunner:
         # two, at most max_model_step_deg / model_step_deg
         self.max_scale = max_model_step_deg / model_step_deg
         self.scale = 1.0
-        self._clean_steps = 0       # steps at this scale with none skipped
+        self._calm_since = None     # input stamp of the last skip, or of the last halving
         self._coarsened = False     # the scale went up since the last step
         self.stats = RunnerStats()
         self._last_stamp = None
@@ -360,7 +362,7 @@ class ModelRunner:
                 stepped = True
             else:
                 self.stats.skipped_steps += 1
-                self._coarsen()
+                self._coarsen(sample.stamp_s)
         self._last_stamp = sample.stamp_s
         st = self._state
         extra = 0.0
@@ -423,7 +425,7 @@ class ModelRunner:
         for i in range(1, n):
             r = i / n
             between = InputSample(t0 + r * dt, a0 + r * da, w0 + r * dw, f0 + r * df)
-            self._state = self._step(between, dt / n)
+            self._step(between, dt / n, answered=False)
             self.stats.substeps += 1
         self._model_stamp = t0 + (n - 1) / n * dt
 
@@ -437,35 +439,34 @@ class ModelRunner:
         self._model_direction = _sign(sample.nut_velocity_rad_s)
         if self.scale > 1.0:
             self.stats.coarse_steps += 1
-            if not self._coarsened:
-                self._clean_steps += 1
-                if self._clean_steps >= RELAX_AFTER_STEPS:
-                    # kept up for a while at this scale: try the finer step again
-                    self.scale = max(1.0, self.scale / 2.0)
-                    self._clean_steps = 0
+            if sample.stamp_s - self._calm_since >= RELAX_AFTER_S:
+                # kept up for a while at this scale: try the finer step again
+                self.scale = max(1.0, self.scale / 2.0)
+                self._calm_since = sample.stamp_s
         self._coarsened = False
 
-    def _coarsen(self):
+    def _coarsen(self, stamp_s):
         """Double the step (once per step taken, up to max): the live model fell behind."""
+        self._calm_since = stamp_s
         if self._coarsened or self.scale >= self.max_scale:
             return
         self.scale = min(2.0 * self.scale, self.max_scale)
-        self._clean_steps = 0
         self._coarsened = True
         self.stats.coarsenings += 1
 
-    def _step(self, sample, dt_s):
+    def _step(self, sample, dt_s, answered=True):
         t0 = time.perf_counter()
         res = self.screw.step(sample.nut_angle_rad, sample.nut_velocity_rad_s,
                               sample.axial_load_n, dt_s)
         self.stats.last_step_wall_s = time.perf_counter() - t0
-        # answered from for every input until the next step: convert once, here
-        self._state_groups = _groups(res.groups)
-        self._state_n_balls = int(np.size(res.azimuth_rad))
-        self._state_converged = bool(res.converged)
         self.stats.model_steps += 1
         if not res.converged:
             self.stats.nonconverged_steps += 1
+        if answered:    # a sub-step's state is never answered: nothing to convert
+            # answered from for every input until the next step: convert once, here
+            self._state_groups = _groups(res.groups)
+            self._state_n_balls = int(np.size(res.azimuth_rad))
+            self._state_converged = bool(res.converged)
         return res
 
     def _update_held(self, total_nm, nut_velocity_rad_s):

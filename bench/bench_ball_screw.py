@@ -1,9 +1,18 @@
 """
-Benchmark of the ball screw model (issue #4, item 7); prints figures, asserts nothing.
+Benchmark of the ball screw model (issue #4, item 7; issue 20, item 2); prints, asserts nothing.
 
-    .venv/bin/python bench/bench_ball_screw.py [--steps 60] [--numpy]
+    .venv/bin/python bench/bench_ball_screw.py [--steps 60] [--numpy] [--baseline REF]
 
-Two-ball module solve (Table 5, from scratch) and whole-screw warm-started steps for
+First (issue 20): the whole-screw step at N = 37, rigid and elastic, against a previous
+version of the package (``--baseline``, a git ref of this repository, default ``main``) in
+the same process: the old ``bb_friction_ros`` is extracted from git into
+out/bench_ball_screw/ under another package name, and each step of the same motion is taken
+by both screws in turn (alternating which goes first), so both see the same machine load.
+Thread CPU time per step, median and 95th percentile, their ratio, and whether the two
+produced bit-identical torques.  The baseline's first run compiles its numba kernels (a
+minute or two; cached for the next run).
+
+Then: two-ball module solve (Table 5, from scratch) and whole-screw warm-started steps for
 N = 37, 74, 148, 370 balls (loaded turns scaled with N, same occupancy and theta pattern),
 then the real-time mode (iteration cap) for N = 37.  ``--numpy`` runs the numpy solver path
 (lagged B2B Jacobian, no numba) instead of the compiled kernel, for comparison.  Wall times
@@ -11,9 +20,14 @@ on a shared machine vary by +-20 %: compare runs made back to back.
 """
 
 import argparse
+import importlib
 import math
 import os
+from pathlib import Path
+import re
 import statistics
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -67,13 +81,96 @@ def bench_screw(model, n_balls, steps, realtime=0, load_distribution="rigid"):
             "groups": max(groups), "unconverged": int(len(conv) - sum(conv))}
 
 
+BASELINE_PACKAGE = "bb_friction_ros_baseline"
+STEP_DEG = 3.6          # the paper's Sec. 3.4 step, the target of issue 20
+
+
+def import_baseline(ref, workdir):
+    """
+    Import the package as it is at git ``ref``, renamed ``bb_friction_ros_baseline``.
+
+    Extracted (with its bundled config/) into ``workdir``/<commit>; kept there, so that its
+    numba cache is reused by the next run.
+    """
+    repo = Path(__file__).resolve().parent.parent
+    sha = subprocess.run(["git", "rev-parse", "--short", ref], cwd=repo, check=True,
+                         capture_output=True, text=True).stdout.strip()
+    root = Path(workdir).resolve() / f"baseline_{sha}"
+    pkg = root / BASELINE_PACKAGE
+    if not pkg.is_dir():
+        root.mkdir(parents=True, exist_ok=True)
+        archive = subprocess.run(["git", "archive", sha, "bb_friction_ros", "config"], cwd=repo,
+                                 check=True, capture_output=True).stdout
+        subprocess.run(["tar", "-x", "-C", str(root)], input=archive, check=True)
+        (root / "bb_friction_ros").rename(pkg)
+        word = re.compile(r"\bbb_friction_ros\b")
+        for path in pkg.rglob("*.py"):
+            path.write_text(word.sub(BASELINE_PACKAGE, path.read_text()))
+    sys.path.insert(0, str(root))
+    whole = importlib.import_module(f"{BASELINE_PACKAGE}.ball_screw.whole_screw")
+    files = importlib.import_module(f"{BASELINE_PACKAGE}.model_file")
+    return sha, whole.WholeScrew, files.load_ball_screw
+
+
+def bench_against_baseline(ref, steps, workdir):
+    """Print the N = 37 step time of this version and of ``ref``, interleaved step by step."""
+    load0 = os.getloadavg()
+    sha, old_screw, old_load = import_baseline(ref, workdir)
+    print(f"whole-screw step, N = 37, {steps} steps of {STEP_DEG} deg at the default 1500 N, "
+          f"this version against {ref} ({sha}), interleaved in one process:")
+    print("  load distr.  this median / p95 [us]  baseline median / p95 [us]  "
+          "baseline / this  torques")
+    rates = {}
+    for dist in ("rigid", "elastic"):
+        over = {"load_distribution": dist}
+        screws = (WholeScrew(load_ball_screw(overrides=over)),
+                  old_screw(old_load(overrides=over)))
+        op = screws[0].config.operation
+        omega = op.nut_velocity_rad_s
+        dt = math.radians(STEP_DEG) / abs(omega)
+        cpu = ([], [])
+        torque = ([], [])
+        for k in range(1, steps + 21):
+            for j in ((0, 1) if k % 2 else (1, 0)):
+                c0 = time.thread_time()
+                r = screws[j].step(omega * k * dt, omega, op.axial_load_n, dt)
+                c1 = time.thread_time()
+                if k > 20:          # cold start and the first steps: not a warm step
+                    cpu[j].append(c1 - c0)
+                    torque[j].append(r.torque_total_nm)
+        med = [statistics.median(c) * 1e6 for c in cpu]
+        rates[dist] = med
+        p95 = [float(np.percentile(c, 95)) * 1e6 for c in cpu]
+        same = torque[0] == torque[1]
+        diff = max(abs(a - b) / abs(b) for a, b in zip(*torque))
+        print(f"  {dist:9s}    {med[0]:8.1f} / {p95[0]:6.1f}        {med[1]:8.1f} / "
+              f"{p95[1]:6.1f}          {med[1] / med[0]:5.2f}x    "
+              f"{'bit-identical' if same else f'max rel. diff {diff:.1e}'}", flush=True)
+    print("  steps/s (1 / median CPU): " + ", ".join(
+        f"{dist} {1e6 / m[0]:.0f} (baseline {1e6 / m[1]:.0f})" for dist, m in rates.items())
+        + "   [target 2000: 20 rev/s at 3.6 deg]")
+    print(f"  machine load {load0[0]:.2f} before, {os.getloadavg()[0]:.2f} after, on "
+          f"{os.cpu_count()} cores")
+
+
 def main():
     """Print the benchmark table."""
     p = argparse.ArgumentParser(description=__doc__)
     p.add_argument("--steps", type=int, default=60, help="whole-screw steps per N")
     p.add_argument("--repeats", type=int, default=7, help="two-ball repeats")
     p.add_argument("--numpy", action="store_true", help="numpy solver path (no kernel)")
+    p.add_argument("--baseline", default="main",
+                   help="git ref of the version to compare the N = 37 step with")
+    p.add_argument("--baseline-steps", type=int, default=400,
+                   help="interleaved steps per load distribution against the baseline")
+    p.add_argument("--baseline-only", action="store_true",
+                   help="only the comparison with the baseline")
+    p.add_argument("--workdir", default="out/bench_ball_screw",
+                   help="where the baseline is extracted (and its numba cache kept)")
     args = p.parse_args()
+    bench_against_baseline(args.baseline, args.baseline_steps, args.workdir)
+    if args.baseline_only:
+        return
     model = ScrewModel(load_ball_screw())
     if args.numpy:
         model.solver.use_kernel = False

@@ -44,7 +44,7 @@ def _proc_rss_mb(pid):
     return float("nan")
 
 
-def drive(rate_hz, duration_s, pid, context, warmup_s=1.0):
+def drive(rate_hz, duration_s, pid, context, warmup_s=1.0, rev_s=1.0):
     """Send nut_state at ``rate_hz``: ``warmup_s`` unmeasured, then ``duration_s`` timed."""
     from bb_friction_msgs.msg import FeedforwardProfile, FrictionPrediction
     from diagnostic_msgs.msg import DiagnosticArray
@@ -112,7 +112,7 @@ def drive(rate_hz, duration_s, pid, context, warmup_s=1.0):
     while pub_state.get_subscription_count() == 0 and time.monotonic() < deadline:
         time.sleep(0.05)
     time.sleep(0.5)
-    omega = 2.0 * np.pi
+    omega = 2.0 * np.pi * rev_s
     n_warm, n = int(rate_hz * warmup_s), int(rate_hz * duration_s)
     angle = 0.0
     stamp0 = time.time()
@@ -169,7 +169,7 @@ def drive(rate_hz, duration_s, pid, context, warmup_s=1.0):
     }
 
 
-def run_node(kind, rate_hz, duration_s, context, extra_args=()):
+def run_node(kind, rate_hz, duration_s, context, extra_args=(), rev_s=1.0):
     """Start ``kind`` (thin or friction), drive it, stop it; return the figures."""
     if kind == "thin":
         cmd = [sys.executable, os.path.join(HERE, "thin_node.py")]
@@ -180,7 +180,7 @@ def run_node(kind, rate_hz, duration_s, context, extra_args=()):
         time.sleep(2.0 if kind == "thin" else 4.0)    # numba cache, friction maps
         if proc.poll() is not None:
             raise RuntimeError(f"{kind} node exited with {proc.returncode}")
-        return drive(rate_hz, duration_s, proc.pid, context)
+        return drive(rate_hz, duration_s, proc.pid, context, rev_s=rev_s)
     finally:
         proc.terminate()
         try:
@@ -195,6 +195,8 @@ def main():
     ap.add_argument("--duration", type=float, default=10.0)
     ap.add_argument("--rates", type=float, nargs="+", default=[500.0, 1000.0, 2000.0])
     ap.add_argument("--json", help="also write all figures to this file")
+    ap.add_argument("--rev-s", type=float, default=1.0, help="nut speed [rev/s] (issue 20: "
+                    "20 rev/s steps the model every 1.8 deg, 4000 steps/s)")
     ap.add_argument("--node-args", nargs=argparse.REMAINDER, default=[],
                     help="extra friction_node arguments, e.g. --ros-args -p "
                          "max_answer_age_s:=0.01")
@@ -211,7 +213,7 @@ def main():
             pair = {}
             for kind in ("thin", "friction"):
                 load = os.getloadavg()[0]
-                r = run_node(kind, rate, args.duration, context, args.node_args)
+                r = run_node(kind, rate, args.duration, context, args.node_args, args.rev_s)
                 r["kind"], r["load_1min"] = kind, load
                 pair[kind] = r
                 results.append(r)
@@ -224,7 +226,10 @@ def main():
                              f"{d.get('skipped_steps', '?')}, dropped "
                              f"{d.get('dropped_inputs', '?')}, non-converged "
                              f"{d.get('nonconverged_steps', '?')}, step "
-                             f"{d.get('last_step_s', '?')} s")
+                             f"{d.get('last_step_s', '?')} s, model "
+                             f"{d.get('model_rate_hz', '?')} steps/s, coarse steps "
+                             f"{d.get('coarse_steps', '?')} at "
+                             f"{d.get('model_step_deg', '?')} deg")
                 print(f"{rate:5.0f} Hz {kind:8s} answered {100 * r['answered_share']:6.2f} % "
                       f"p50 {r['p50_ms']:6.2f} ms p99 {r['p99_ms']:6.2f} ms  CPU "
                       f"{100 * r['cpu_share']:4.0f} % of a core ({r['cpu_us_per_input']:5.0f}"

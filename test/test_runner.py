@@ -275,10 +275,10 @@ def test_rebuild_with_the_same_terms_keeps_their_clock():
 def test_falling_behind_takes_coarser_steps_and_recovers():
     """
     Issue 20, item 3: a skipped step doubles the schedule's step (once per step taken, up to
-    max_model_step_deg), steps taken coarser are counted, and after RELAX_AFTER_STEPS clean
-    steps the step halves again.  Replay never skips, so it never coarsens.
+    max_model_step_deg), steps taken coarser are counted, and after RELAX_AFTER_S of input
+    time with none skipped the step halves again.  Replay never skips, so it never coarsens.
     """
-    from bb_friction_ros.runner import RELAX_AFTER_STEPS
+    from bb_friction_ros.runner import RELAX_AFTER_S
     runner = ModelRunner(RecordingScrew(), model_rate_hz=1.0, model_step_deg=1.0,
                          max_model_step_deg=4.0)
     d = math.radians(1.0)
@@ -303,8 +303,13 @@ def test_falling_behind_takes_coarser_steps_and_recovers():
     steps = [p.stepped for p in feed(12, True)]
     assert steps == [True, False, False, False] * 3                    # every 4 deg now
     assert runner.stats.coarse_steps == 4 and runner.stats.skipped_steps == 4
-    feed(4 * RELAX_AFTER_STEPS, True)
+    n = int(RELAX_AFTER_S / 1e-3)
+    feed(n - 30, True)                                                 # last skip at 9 ms
+    assert runner.scale == 4.0                                         # not yet
+    feed(40, True)
     assert runner.scale == 2.0
+    feed(n, True)
+    assert runner.scale == 1.0
     assert runner.step_rad == pytest.approx(d)
 
 
@@ -332,3 +337,43 @@ def test_inputs_further_apart_than_the_step_are_substepped():
     runner.process(InputSample(1.004, -200 * math.pi, -w, 100.0))
     assert len([c for c in screw.calls if c[0] == "step"]) == 10 + MAX_SUBSTEPS
     assert runner.stats.long_jumps == 1
+
+
+def test_look_ahead_is_spaced_in_nut_angle_and_covers_the_schedule():
+    """
+    Issue 20, item 4: the profile's points are evenly spaced in nut angle over
+    profile_horizon_periods model periods of motion, and never less than that many model
+    steps when the nut creeps (where a period turns it less than a step).
+    """
+    from bb_friction_ros.runner import look_ahead_profile
+    step = math.radians(1.8)
+    for w, span in ((2 * math.pi * 10, 2 * 0.01 * 2 * math.pi * 10), (0.01, 2 * step)):
+        runner = ModelRunner(RecordingScrew(), 100.0, model_step_deg=1.8)
+        s = InputSample(3.0, 0.5, -w, 100.0)
+        runner.process(s)
+        angles, _, _ = look_ahead_profile(runner.profile_seed(s), 2.0, 5)
+        assert angles[0] == 0.5
+        assert [a - b for a, b in zip(angles, angles[1:])] == pytest.approx([span / 4] * 4)
+
+
+def test_replay_of_a_bag_with_stamps_at_zero_follows_the_load_and_warns(tmp_path):
+    """Issue 23, finding 2 in replay: header.stamp 0 on every message (log times advance)."""
+    from bb_friction_ros.bags import Event, write_events
+    from bb_friction_ros.replay import replay
+    w = 2 * math.pi
+    events, log_t = [], []
+    for k in range(300):
+        if k % 10 == 0:
+            events.append(Event("axial_load", 0.0, value=1500.0 if k < 150 else 6000.0))
+            log_t.append(1.0 + k * 1e-3)
+        events.append(Event("nut_state", 0.0, ("nut_joint",), (w * k * 1e-3,), (w,)))
+        log_t.append(1.0 + k * 1e-3 + 1e-4)
+    bag = tmp_path / "bag"
+    write_events(bag, events, log_times_s=log_t)
+    summary = replay(bag, tmp_path / "out", progress=False, write_bag=False)
+    assert summary["stamp_stalls"] == 299
+    assert any("stamp" in warning for warning in summary["warnings"])
+    rows = (tmp_path / "out" / "prediction.csv").read_text().splitlines()
+    col = rows[0].split(",").index("torque_pred_nm")
+    first, last = float(rows[1].split(",")[col]), float(rows[-1].split(",")[col])
+    assert last > 3.0 * first > 0.0       # the model followed the load to 6000 N

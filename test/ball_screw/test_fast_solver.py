@@ -36,6 +36,7 @@ def _kernel_evaluate(model, x, u, centres, sign, scale):
     axial = kernel.evaluate_balls(x, u, np.zeros(n), centres, sign, cst, sv._k_load,
                                   sv._k_axis, sv._on_nut, sv._coef[0], sv._coef[1], sv._grid,
                                   scale, True, res, jac, dax, terms, per_contact)
+    kernel.contact_angles(x, u, np.zeros(n), centres, cst, sv._on_nut, per_contact)
     return axial, res, jac, dax, terms, per_contact
 
 
