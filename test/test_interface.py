@@ -84,3 +84,15 @@ def test_local_domain_id_is_off_the_default_domain():
     """1..101 from the pid, never the user's default 0, within DDS's domain range."""
     ids = {interface.local_domain_id(pid) for pid in range(0, 5000, 7)}
     assert min(ids) == 1 and max(ids) == 101
+
+
+def test_the_names_are_the_contract():
+    """Topic names and types users script against (README, issue 1): pinned here, once."""
+    assert (interface.NUT_STATE, interface.AXIAL_LOAD, interface.MEASURED_TORQUE) == \
+        ("nut_state", "axial_load", "measured_torque")
+    assert interface.OUTPUTS == ("friction/prediction", "friction/feedforward",
+                                 "friction/feedforward_profile", "friction/contact_groups")
+    assert interface.DIAGNOSTICS == "/diagnostics"
+    assert interface.TYPES[interface.FEEDFORWARD] == "std_msgs/msg/Float64MultiArray"
+    assert interface.TYPES[interface.NUT_STATE] == "sensor_msgs/msg/JointState"
+    assert interface.TYPES[interface.AXIAL_LOAD] == "geometry_msgs/msg/WrenchStamped"

@@ -13,7 +13,8 @@ import pytest
 
 from bb_friction_ros.bags import Event
 from bb_friction_ros.config import bundled_config
-from bb_friction_ros.live import ERROR, LiveSchedule, OK, Outputs, process_age_s, WARN
+from bb_friction_ros.live import (ERROR, LiveSchedule, OK, Outputs, process_age_s,
+                                  process_cpu_s, WARN)
 from bb_friction_ros.node_parameters import NodeParameters
 from bb_friction_ros.replay import run_events
 from bb_friction_ros.runner import build_runner, InputAssembler, ModelRunner
@@ -234,8 +235,35 @@ def test_process_age_is_this_process():
     """The start-up figure of the ready log line: this process's age, not the machine's."""
     age = process_age_s()
     assert age is not None and 0.0 <= age < time.monotonic()
+    # CPU time of all threads: positive, and no more than the cores could give since launch
+    assert 0.0 < process_cpu_s() <= age * (__import__("os").cpu_count() or 1) + 0.05
     assert age == pytest.approx(time.monotonic() - _T_IMPORTED + _AGE_AT_IMPORT, abs=0.1)
 
 
 _T_IMPORTED = time.monotonic()
 _AGE_AT_IMPORT = process_age_s()
+
+
+def test_ready_means_compiled_nothing_compiles_in_the_live_path():
+    """
+    After build_runner (the node's "ready"), steps and look-ahead profiles compile nothing.
+
+    A read-only state array once made numba compile a second specialisation of the warm
+    kernel at the first profile, seconds after "ready", in the model thread.
+    """
+    from bb_friction_ros import compiled
+    from bb_friction_ros.ball_screw import kernel
+    from bb_friction_ros.runner import InputSample, look_ahead_profile
+    if not compiled.HAVE_NUMBA:
+        pytest.skip("numba not installed: nothing is compiled")
+    dispatchers = {name: f for name, f in vars(kernel).items() if hasattr(f, "signatures")}
+    runner = build_runner(bundled_config("ball_screw.yaml"), 100.0)
+    before = {name: len(f.signatures) for name, f in dispatchers.items()}
+    w = 6.0
+    for k in range(200):        # steps, a reversal, profiles after each step
+        s = InputSample(1e-3 * k, w * 1e-3 * k if k < 100 else w * (0.2 - 1e-3 * k),
+                        w if k < 100 else -w, 1500.0)
+        if runner.process(s).stepped:
+            look_ahead_profile(runner.profile_seed(s), 2.0, 3)
+    after = {name: len(f.signatures) for name, f in dispatchers.items()}
+    assert after == before

@@ -17,6 +17,7 @@ import time
 import pytest
 from rclpy.parameter import Parameter
 
+from bb_friction_ros import interface
 from bb_friction_ros.bags import Event
 from bb_friction_ros.config import ConfigError
 from bb_friction_ros.node import FrictionNode
@@ -27,8 +28,9 @@ from bb_friction_ros.harness import console_script, play_through_node
 from test_feedforward import ScriptedScrew
 
 
-def replay_predictions(events, model_rate_hz):
-    runner = build_runner(bundled_config("ball_screw.yaml"), model_rate_hz)
+def replay_predictions(events, model_rate_hz, model_step_deg=None):
+    runner = build_runner(bundled_config("ball_screw.yaml"), model_rate_hz, model_step_deg,
+                          model_step_deg)
     return run_events(events, runner, InputAssembler("nut_joint", 1e5))
 
 
@@ -41,11 +43,14 @@ def test_flood_keeps_answer_age_bounded_and_counts_everything(ros_context):
     j = ("nut_joint",)
     max_age = 2e-4
     # 1.5 s of 5 kHz input in real time, answers allowed 0.2 ms: the answering is overloaded
-    # (sender and node share this process), while a 2 Hz model easily keeps its schedule
+    # (sender and node share this process), while a model stepping every 90 deg of nut
+    # rotation (~4 steps/s at 6 rad/s) and at 2 Hz easily keeps its schedule.  At the default
+    # 1.8 deg (191 steps/s) it fell a period behind on a loaded machine: steps skipped.
     events = [Event("axial_load", 0.0, value=1500.0)] + [
         Event("nut_state", 2e-4 * k, j, (6.0 * 2e-4 * k,), (6.0,)) for k in range(7500)]
     preds, _, diag, diags = play_through_node(
-        events, {"max_answer_age_s": max_age, "model_rate_hz": 2.0, "queue_size": 100000},
+        events, {"max_answer_age_s": max_age, "model_rate_hz": 2.0, "queue_size": 100000,
+                 "model_step_deg": 90.0, "max_model_step_deg": 90.0},
         context=ros_context, speed=1.0)
     assert diag["shed_inputs"] > 0, "the flood did not overload the node: test is void"
     assert diag["published"] + diag["shed_inputs"] + diag["dropped_inputs"] \
@@ -55,7 +60,7 @@ def test_flood_keeps_answer_age_bounded_and_counts_everything(ros_context):
     assert any("shedding load" in s.message for d in diags for s in d.status)
     # live = replay on every answered sample (the model never fell a period behind here)
     assert diag["skipped_steps"] == 0
-    ref = replay_predictions(events, model_rate_hz=2.0)
+    ref = replay_predictions(events, model_rate_hz=2.0, model_step_deg=90.0)
     by_stamp = {round(p.stamp_s, 9): p for p in ref}
     for live in preds:
         core = by_stamp[round(live["stamp_s"], 9)]
@@ -84,15 +89,16 @@ class Probe:
         self.io = Node("servo_probe", context=context)
         rel = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
         self.preds, self.ff, self.profiles, self.diags = [], [], [], []
-        self.io.create_subscription(FrictionPrediction, "friction/prediction",
+        self.io.create_subscription(FrictionPrediction, interface.PREDICTION,
                                     self.preds.append, rel)
-        self.io.create_subscription(Float64MultiArray, "friction/feedforward",
+        self.io.create_subscription(Float64MultiArray, interface.FEEDFORWARD,
                                     lambda m: self.ff.append(m.data[0]), rel)
-        self.io.create_subscription(FeedforwardProfile, "friction/feedforward_profile",
+        self.io.create_subscription(FeedforwardProfile, interface.PROFILE,
                                     self.profiles.append, rel)
-        self.io.create_subscription(DiagnosticArray, "/diagnostics", self.diags.append, rel)
-        self.pub_state = self.io.create_publisher(JointState, "nut_state", rel)
-        self.pub_load = self.io.create_publisher(WrenchStamped, "axial_load", rel)
+        self.io.create_subscription(DiagnosticArray, interface.DIAGNOSTICS, self.diags.append,
+                                    rel)
+        self.pub_state = self.io.create_publisher(JointState, interface.NUT_STATE, rel)
+        self.pub_load = self.io.create_publisher(WrenchStamped, interface.AXIAL_LOAD, rel)
         self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.node)
         self.executor.add_node(self.io)

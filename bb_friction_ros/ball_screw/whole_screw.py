@@ -316,10 +316,13 @@ class WholeScrew:
         st = solver.settings
         x, u = self._state[0], self._state[1]
         shape = (self.n,) if elastic is not None else (1,)
-        u = np.ascontiguousarray(np.broadcast_to(u, shape), dtype=float)
+        # np.array copies: a broadcast view is read-only, and numba compiles another
+        # specialisation for read-only arrays (the look-ahead's first step compiled it in
+        # the live node's model thread, seconds after the node said ready)
+        u = np.array(np.broadcast_to(u, shape), dtype=float)
         if self._prev is not None:
             xp, up, fp, dp = self._prev
-            up = np.ascontiguousarray(np.broadcast_to(up, shape), dtype=float)
+            up = np.array(np.broadcast_to(up, shape), dtype=float)
         else:
             xp, up, fp, dp = x, u, self._forces, 0.0
         path = elastic if elastic is not None else _RIGID

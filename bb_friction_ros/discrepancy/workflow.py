@@ -217,7 +217,8 @@ def analyse(rec, settings):
         else:
             what = "no sample with both a measured torque and a converged prediction"
         raise InsufficientData([what])
-    rec = rec.take(ok)
+    if not ok.all():          # a copy of every column only when samples are dropped
+        rec = rec.take(ok)
     n = len(rec)
     n_fit = int(math.floor((1.0 - settings.holdout_fraction) * n))
     fit_mask = np.zeros(n, dtype=bool)
