@@ -31,7 +31,7 @@ from std_msgs.msg import Float64MultiArray
 
 from bb_friction_ros import interface
 from bb_friction_ros.config import bundled_config, ConfigError
-from bb_friction_ros.live import LiveSchedule, Outputs, process_age_s
+from bb_friction_ros.live import LiveSchedule, Outputs, process_age_s, process_cpu_s
 from bb_friction_ros.node_parameters import (MODEL_PARAMETERS, NODE_NAME, node_parameters,
                                              NodeParameters, ros_type, RUNTIME,
                                              unknown_parameters)
@@ -109,8 +109,7 @@ class FrictionNode(Node):
                                      qos),
             self.create_subscription(JointState, interface.NUT_STATE,
                                      lambda msg: self._on_nut_state(msg, time.time_ns()), qos))
-        self._groups_timer = self.create_timer(1.0 / p.groups_rate_hz,
-                                               self.live.publish_groups)
+        self._groups_timer = self.create_timer(1.0 / p.groups_rate_hz, self.live.publish_groups)
         self.create_timer(1.0 / p.diagnostics_rate_hz, self._publish_diagnostics)
         # rclpy's pattern: validate in the on-set callback, apply in the post-set one
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -119,7 +118,8 @@ class FrictionNode(Node):
         self._taker = InputTaker(self, *self._inputs, self._on_axial_load, self._on_nut_state)
         age = process_age_s()
         self.get_logger().info("ready: model built and warm" + (
-            f", {age:.2f} s after launch" if age is not None else ""))
+            f", {age:.2f} s after launch" if age is not None else "")
+            + f" ({process_cpu_s():.2f} s of CPU)")
 
     # --- inputs and outputs (the schedule is live.LiveSchedule) ----------------------------
     def _on_nut_state(self, msg, recv_ns):

@@ -152,12 +152,19 @@ def main():
                     help="--physical: cases with empirical effects only")
     ap.add_argument("--no-timing", action="store_true",
                     help="--physical: skip the 60 s 1 kHz timing")
+    ap.add_argument("--memory-phases", nargs=2, metavar=("BAG", "BASELINE"),
+                    help="peak RSS per phase (imports, model warm-up, load, cut-off, analysis) "
+                    "of the workflow on BAG (e.g. one written by --write-long-bag) with "
+                    "--baseline BASELINE (model or zero); run it alone, in a fresh process")
     args = ap.parse_args()
     if args.physical:
         physical_section(args)
         return
     if args.write_long_bag:
         write_long_bag(args.write_long_bag)
+        return
+    if args.memory_phases:
+        memory_phases(*args.memory_phases)
         return
     settings = DiscrepancySettings()
     t0 = time.perf_counter()
@@ -438,6 +445,42 @@ def memory_section():
             print(f"   discrepancy {' '.join(extra) or '(model)'}: peak RSS {mb:.0f} MB "
                   f"(goal <= 300 MB), {time.perf_counter() - t1:.0f} s, status "
                   f"{proc.returncode} {proc.stderr.strip()[-200:]}")
+
+
+def _rss_mb():
+    """Return (current, peak) resident set size of this process [MB] (Linux /proc)."""
+    d = {}
+    with open("/proc/self/status") as fh:
+        for line in fh:
+            if line.startswith(("VmRSS", "VmHWM")):
+                k, v = line.split(":")
+                d[k] = int(v.split()[0]) / 1024
+    return d.get("VmRSS", float("nan")), d.get("VmHWM", float("nan"))
+
+
+def memory_phases(bag, baseline):
+    """Print the peak RSS after each phase of the workflow on ``bag`` (issue 19)."""
+    import gc
+    from bb_friction_ros.config import bundled_config
+    from bb_friction_ros.discrepancy import workflow
+    from bb_friction_ros.discrepancy.data import load_recording
+    from bb_friction_ros.runner import build_runner
+
+    def say(what):
+        now, peak = _rss_mb()
+        print(f"   {what}: RSS {now:.0f} MB, peak so far {peak:.0f} MB", flush=True)
+    say("imports (numpy, scipy, rosbags, numba via the runner)")
+    if baseline == "model":
+        build_runner(bundled_config("ball_screw.yaml"), 100.0)    # built, warmed, dropped
+        gc.collect()
+        say("ball-screw model built and warmed up (numba kernels)")
+    rec = load_recording(bag, baseline=baseline, progress=False)
+    say(f"recording loaded ({len(rec)} samples)")
+    settings = DiscrepancySettings()
+    choice = workflow.choose_cutoff(rec, settings, workflow.usable)
+    say(f"cut-off chosen ({choice.cutoff_hz:.3g} Hz)")
+    workflow.analyse(rec, settings)
+    say("analysed (whole workflow, no plots)")
 
 
 def write_long_bag(path, minutes=10.0, rate_hz=1000.0):

@@ -13,7 +13,8 @@ import pytest
 
 from bb_friction_ros.bags import Event
 from bb_friction_ros.config import bundled_config
-from bb_friction_ros.live import ERROR, LiveSchedule, OK, Outputs, process_age_s, WARN
+from bb_friction_ros.live import (ERROR, LiveSchedule, OK, Outputs, process_age_s,
+                                  process_cpu_s, WARN)
 from bb_friction_ros.node_parameters import NodeParameters
 from bb_friction_ros.replay import run_events
 from bb_friction_ros.runner import build_runner, InputAssembler, ModelRunner
@@ -234,6 +235,8 @@ def test_process_age_is_this_process():
     """The start-up figure of the ready log line: this process's age, not the machine's."""
     age = process_age_s()
     assert age is not None and 0.0 <= age < time.monotonic()
+    # CPU time of all threads: positive, and no more than the cores could give since launch
+    assert 0.0 < process_cpu_s() <= age * (__import__("os").cpu_count() or 1) + 0.05
     assert age == pytest.approx(time.monotonic() - _T_IMPORTED + _AGE_AT_IMPORT, abs=0.1)
 
 

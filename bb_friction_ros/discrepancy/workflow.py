@@ -222,7 +222,9 @@ def analyse(rec, settings, physics=None):
         else:
             what = "no sample with both a measured torque and a converged prediction"
         raise InsufficientData([what])
-    rec_in, rec = rec, rec.take(ok)      # every input sample drives a physical trial's model
+    rec_in = rec              # every input sample drives a physical trial's model
+    if not ok.all():          # a copy of every column only when samples are dropped
+        rec = rec.take(ok)
     n = len(rec)
     n_fit = int(math.floor((1.0 - settings.holdout_fraction) * n))
     fit_mask = np.zeros(n, dtype=bool)
