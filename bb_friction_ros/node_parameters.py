@@ -29,7 +29,7 @@ class NodeParameters:
                                  lo=1.0, hi=2000.0)
     model_step_deg: float = field(1.8, "deg", "nut rotation between whole-screw model steps "
                                   "(bench/bench_convergence.py)", lo=0.05, hi=90.0)
-    max_model_step_deg: float = field(36.0, "deg", "coarsest step the live model takes when "
+    max_model_step_deg: float = field(14.4, "deg", "coarsest step the live model takes when "
                                       "it cannot keep up (counted in diagnostics)", lo=0.05,
                                       hi=360.0)
     queue_size: int = field(256, "1", "inputs waiting for the model thread; when full the "

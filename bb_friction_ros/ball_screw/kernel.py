@@ -515,98 +515,22 @@ def _residual(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, co
 
 
 @_jit
-def _alloc(n, kc):
-    """Work arrays of one residual evaluation (see ``_residual``)."""
-    return (np.empty((n, 6)), np.empty((n, 6, 7)), np.empty((n, 7)), np.empty((n, 10)),
-            np.empty((n, 4, 3)), np.empty((kc, 6)), np.empty((kc, 6)), np.empty(kc),
-            np.empty((kc, 6, 6)), np.empty((kc, 6, 6)), np.empty((kc, 6, 6)),
-            np.empty((kc, 6, 6)), np.empty(kc))
-
-
-@_jit
 def solve_active(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
                  grid, scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, tol,
                  max_it, max_rate, disp_limit):
     """
-    Newton with trust region and halving line search for one active set.
+    ``newton`` for a rigid nut and shaft (one nut displacement u, a float).
 
     Same iteration as ``EquilibriumSolver.solve_active`` (numpy path) with the exact
     Jacobian.  Returns (x, u, fhat, ok, iterations, norm, terms, per_contact, speed).
     """
-    n = x.shape[0]
-    kc = rear.shape[0]
-    cur = _alloc(n, kc)
-    trial = _alloc(n, kc)
-    x = x.copy()
-    fhat = fhat.copy()
-    axial, norm = _residual(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
-                            coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f,
-                            k_r, k_f, cur[0], cur[1], cur[2], cur[3], cur[4], cur[5], cur[6],
-                            cur[7], cur[8], cur[9], cur[10], cur[11], cur[12], True)
-    rear_of, front_of, seq, starts, ok_chain = chains(n, rear, front)
-    if not ok_chain:
-        contact_angles(x, u, np.zeros(n), centres, cst, on_nut, cur[4])
-        return x, u, fhat, False, 0, norm, cur[3], cur[4], cur[7]
-    xs = np.empty((n, 7, 9))
-    ys = np.empty((n, 7, 2))
-    dx = np.empty((n, 6))
-    df = np.zeros(kc)
-    xn = np.empty((n, 6))
-    fn = np.empty(kc)
-    it = 0
-    while norm > tol and it < max_it:
-        it += 1
-        du = newton_direction(seq, starts, rear_of, front_of, cur[1], cur[2], cur[0], axial,
-                              cur[12], fhat, cur[5], cur[6], cur[8], cur[9], cur[10],
-                              cur[11], xs, ys, dx, df)
-        big_r = 0.0
-        big_d = abs(du)
-        for i in range(n):
-            for j in range(2):
-                big_d = max(big_d, abs(dx[i, j]))
-            for j in range(2, 6):
-                big_r = max(big_r, abs(dx[i, j]))
-        big = max(big_r / max_rate, big_d / disp_limit)
-        step = 1.0 / big if big > 1.0 else 1.0
-        if not math.isfinite(big):
-            contact_angles(x, u, np.zeros(n), centres, cst, on_nut, cur[4])
-            return x, u, fhat, False, it, norm, cur[3], cur[4], cur[7]
-        un = u
-        nn = norm
-        ax_n = axial
-        # Near the solution (quadratic convergence, measured constant < 1e3) the next iterate
-        # almost surely meets the tolerance: evaluate it without the Jacobian, and add the
-        # Jacobian only if it did not.
-        last = norm * norm * 1e3 <= tol
-        for _ in range(_N_TRIAL):
-            for i in range(n):
-                for j in range(6):
-                    xn[i, j] = x[i, j] + step * dx[i, j]
-            un = u + step * du
-            for c in range(kc):
-                fn[c] = fhat[c] + step * df[c]
-            ax_n, nn = _residual(xn, un, fn, centres, sign, cst, k_load, k_axis, on_nut,
-                                 coef_s, coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f,
-                                 c_r, c_f, k_r, k_f, trial[0], trial[1], trial[2], trial[3],
-                                 trial[4], trial[5], trial[6], trial[7], trial[8], trial[9],
-                                 trial[10], trial[11], trial[12], not last)
-            if math.isfinite(nn) and (nn < norm or nn <= tol):
-                break
-            step *= 0.5
-        if last and not nn <= tol:
-            ax_n, nn = _residual(xn, un, fn, centres, sign, cst, k_load, k_axis, on_nut,
-                                 coef_s, coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f,
-                                 c_r, c_f, k_r, k_f, trial[0], trial[1], trial[2], trial[3],
-                                 trial[4], trial[5], trial[6], trial[7], trial[8], trial[9],
-                                 trial[10], trial[11], trial[12], True)
-        x, xn = xn, x
-        fhat, fn = fn, fhat
-        u = un
-        axial = ax_n
-        norm = nn
-        cur, trial = trial, cur
-    contact_angles(x, u, np.zeros(n), centres, cst, on_nut, cur[4])
-    return x, u, fhat, norm <= tol, it, norm, cur[3], cur[4], cur[7]
+    ua = np.empty(1)
+    ua[0] = u
+    x, ua, fhat, ok, it, norm, terms, per_contact, speed = newton(
+        x, ua, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid, scale,
+        axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, np.zeros(0, dtype=np.int64),
+        np.zeros(0), np.zeros(0), tol, max_it, max_rate, disp_limit)
+    return x, ua[0], fhat, ok, it, norm, terms, per_contact, speed
 
 
 @_jit
@@ -960,8 +884,8 @@ def elastic_direction(order, behind, ahead, wrap, rear, jac, dax, res, tr, cp, c
 
 
 @_jit
-def _alloc_elastic(n, kc):
-    """Work arrays of one elastic residual evaluation (see ``_elastic_residual``)."""
+def _alloc(n, kc):
+    """Work arrays of one evaluation: ``_residual`` uses 13, ``_elastic_residual`` all 15."""
     return (np.empty((n, 6)), np.empty((n, 6, 7)), np.empty((n, 7)), np.empty((n, 10)),
             np.empty((n, 4, 3)), np.empty((kc, 6)), np.empty((kc, 6)), np.empty(kc),
             np.empty((kc, 6, 6)), np.empty((kc, 6, 6)), np.empty((kc, 6, 6)),
@@ -973,123 +897,164 @@ def solve_active_elastic(x, v, fhat, centres, sign, cst, k_load, k_axis, on_nut,
                          coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r,
                          k_f, order, comp_a, comp_b, tol, max_it, max_rate, disp_limit):
     """
-    ``solve_active`` for the elastic load distribution: v (N,) per-ball nut displacements.
+    ``newton`` for the elastic load distribution: v (N,) per-ball nut displacements.
 
-    Same trust region and line search.  The cumulative loads start from the balls' current
-    axial forces.  Returns (x, v, fhat, ok, iterations, norm, terms, per_contact, speed).
+    Returns (x, v, fhat, ok, iterations, norm, terms, per_contact, speed).
+    """
+    return newton(x, v, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid,
+                  scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a,
+                  comp_b, tol, max_it, max_rate, disp_limit)
+
+
+@_jit
+def _evaluate(elastic, x, u, cum, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
+              coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f,
+              order, comp_a, comp_b, w, want_jac):
+    """Residual norm (and the rigid axial residual) of ``newton``'s system into work ``w``."""
+    if elastic:
+        norm = _elastic_residual(x, u, cum, fhat, centres, sign, cst, k_load, k_axis, on_nut,
+                                 coef_s, coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f,
+                                 c_r, c_f, k_r, k_f, order, comp_a, comp_b, w[0], w[1], w[2],
+                                 w[3], w[4], w[5], w[6], w[7], w[8], w[9], w[10], w[11], w[12],
+                                 w[13], w[14], want_jac)
+        return 0.0, norm
+    return _residual(x, u[0], fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
+                     grid, scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, w[0],
+                     w[1], w[2], w[3], w[4], w[5], w[6], w[7], w[8], w[9], w[10], w[11], w[12],
+                     want_jac)
+
+
+@_jit
+def newton(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid,
+           scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b,
+           tol, max_it, max_rate, disp_limit):
+    """
+    Newton with trust region and halving line search for one active set, either load path.
+
+    The one compiled Newton iteration.  Rigid nut and shaft (``order`` empty): u (1,) is the
+    shared nut displacement; the system is block tridiagonal along each chain, bordered by u
+    (``newton_direction``).  Elastic
+    load path (``order``: ball ids in axial order): u (N,) are the per-ball displacements and
+    the cumulative loads C_k are unknowns too, starting from the balls' current axial forces;
+    the system is block tridiagonal in axial order (``elastic_direction``).  Same iteration as
+    ``EquilibriumSolver.solve_active`` (numpy path) with the exact Jacobian.  Returns (x, u,
+    fhat, ok, iterations, norm, terms, per_contact, speed).
     """
     n = x.shape[0]
     kc = rear.shape[0]
-    cur = _alloc_elastic(n, kc)
-    trial = _alloc_elastic(n, kc)
+    elastic = order.shape[0] > 0
+    cur = _alloc(n, kc)
+    trial = _alloc(n, kc)
     x = x.copy()
-    v = v.copy()
+    u = u.copy()
     fhat = fhat.copy()
-    evaluate_balls(x, 0.0, v, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
-                   grid, scale, False, cur[0], cur[1], cur[2], cur[3], cur[4])
-    cum = np.empty(n)
-    acc = 0.0
-    for k in range(n):
-        acc -= cur[3][order[k], 8] / scale
-        cum[k] = acc
-    pos = np.empty(n, dtype=np.int64)
-    for k in range(n):
-        pos[order[k]] = k
-    behind, ahead, wrap = _elastic_blocks(order, pos, rear, front, n)
-    norm = _elastic_residual(x, v, cum, fhat, centres, sign, cst, k_load, k_axis, on_nut,
-                             coef_s, coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f, c_r,
-                             c_f, k_r, k_f, order, comp_a, comp_b, cur[0], cur[1], cur[2],
-                             cur[3], cur[4], cur[5], cur[6], cur[7], cur[8], cur[9], cur[10],
-                             cur[11], cur[12], cur[13], cur[14], True)
-    xs = np.empty((n, 9, 11))
-    ys = np.empty((n, 9, 2))
+    cum = np.empty(n if elastic else 0)
+    pos = np.empty(order.shape[0], dtype=np.int64)
+    if elastic:
+        evaluate_balls(x, 0.0, u, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
+                       grid, scale, False, cur[0], cur[1], cur[2], cur[3], cur[4])
+        acc = 0.0
+        for k in range(n):
+            acc -= cur[3][order[k], 8] / scale
+            cum[k] = acc
+        for k in range(n):
+            pos[order[k]] = k
+    if elastic:
+        behind, ahead, wrap = _elastic_blocks(order, pos, rear, front, n)
+    else:
+        behind = np.full(0, -1, dtype=np.int64)
+        ahead = behind
+        wrap = -1
+    rear_of, front_of, seq, starts, ok_chain = chains(n, rear, front)
+    axial, norm = _evaluate(elastic, x, u, cum, fhat, centres, sign, cst, k_load, k_axis, on_nut,
+                            coef_s, coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f,
+                            c_r, c_f, k_r, k_f, order, comp_a, comp_b, cur, True)
+    if not (elastic or ok_chain):
+        _angles(elastic, x, u, centres, cst, on_nut, cur[4])
+        return x, u, fhat, False, 0, norm, cur[3], cur[4], cur[7]
+    nb = 9 if elastic else 7
+    xs = np.empty((n, nb, nb + 2))
+    ys = np.empty((n, nb, 2))
     dx = np.empty((n, 6))
-    dv = np.empty(n)
-    dcum = np.empty(n)
+    du = np.empty(u.shape[0])
+    dcum = np.empty(cum.shape[0])
     df = np.zeros(kc)
     xn = np.empty((n, 6))
-    vn = np.empty(n)
-    cn = np.empty(n)
+    un = np.empty(u.shape[0])
+    cn = np.empty(cum.shape[0])
     fn = np.empty(kc)
     it = 0
     while norm > tol and it < max_it:
         it += 1
-        elastic_direction(order, behind, ahead, wrap, rear, cur[1], cur[2], cur[0], cur[13],
-                          cur[14], cur[12], fhat, comp_b, cur[5], cur[6], cur[8], cur[9],
-                          cur[10], cur[11], xs, ys, dx, dv, dcum, df)
+        if elastic:
+            elastic_direction(order, behind, ahead, wrap, rear, cur[1], cur[2], cur[0], cur[13],
+                              cur[14], cur[12], fhat, comp_b, cur[5], cur[6], cur[8], cur[9],
+                              cur[10], cur[11], xs, ys, dx, du, dcum, df)
+        else:
+            du[0] = newton_direction(seq, starts, rear_of, front_of, cur[1], cur[2], cur[0],
+                                     axial, cur[12], fhat, cur[5], cur[6], cur[8], cur[9],
+                                     cur[10], cur[11], xs, ys, dx, df)
+        # Trust region: near two-point contact the spin about the loaded diagonal is weakly
+        # determined and a full step can run away.
         big_r = 0.0
         big_d = 0.0
+        for i in range(u.shape[0]):
+            big_d = max(big_d, abs(du[i]))
         for i in range(n):
-            big_d = max(big_d, abs(dv[i]))
             for j in range(2):
                 big_d = max(big_d, abs(dx[i, j]))
             for j in range(2, 6):
                 big_r = max(big_r, abs(dx[i, j]))
         big = max(big_r / max_rate, big_d / disp_limit)
         if not math.isfinite(big):
-            contact_angles(x, 0.0, v, centres, cst, on_nut, cur[4])
-            return x, v, fhat, False, it, norm, cur[3], cur[4], cur[7]
+            _angles(elastic, x, u, centres, cst, on_nut, cur[4])
+            return x, u, fhat, False, it, norm, cur[3], cur[4], cur[7]
         step = 1.0 / big if big > 1.0 else 1.0
         nn = norm
+        ax_n = axial
+        # Near the solution (quadratic convergence, measured constant < 1e3) the next iterate
+        # almost surely meets the tolerance: evaluate it without the Jacobian, and add the
+        # Jacobian only if it did not.
         last = norm * norm * 1e3 <= tol
         for _ in range(_N_TRIAL):
             for i in range(n):
                 for j in range(6):
                     xn[i, j] = x[i, j] + step * dx[i, j]
-                vn[i] = v[i] + step * dv[i]
+            for i in range(u.shape[0]):
+                un[i] = u[i] + step * du[i]
+            for i in range(cum.shape[0]):
                 cn[i] = cum[i] + step * dcum[i]
             for c in range(kc):
                 fn[c] = fhat[c] + step * df[c]
-            nn = _elastic_residual(xn, vn, cn, fn, centres, sign, cst, k_load, k_axis,
-                                   on_nut, coef_s, coef_n, grid, scale, axial_load_n, rear, front,
-                                   b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b,
-                                   trial[0], trial[1], trial[2], trial[3], trial[4],
-                                   trial[5], trial[6], trial[7], trial[8], trial[9],
-                                   trial[10], trial[11], trial[12], trial[13], trial[14],
-                                   not last)
+            ax_n, nn = _evaluate(elastic, xn, un, cn, fn, centres, sign, cst, k_load, k_axis,
+                                 on_nut, coef_s, coef_n, grid, scale, axial_load_n, rear, front,
+                                 b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b, trial,
+                                 not last)
             if math.isfinite(nn) and (nn < norm or nn <= tol):
                 break
             step *= 0.5
         if last and not nn <= tol:
-            nn = _elastic_residual(xn, vn, cn, fn, centres, sign, cst, k_load, k_axis,
-                                   on_nut, coef_s, coef_n, grid, scale, axial_load_n, rear, front,
-                                   b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b,
-                                   trial[0], trial[1], trial[2], trial[3], trial[4],
-                                   trial[5], trial[6], trial[7], trial[8], trial[9],
-                                   trial[10], trial[11], trial[12], trial[13], trial[14],
-                                   True)
+            ax_n, nn = _evaluate(elastic, xn, un, cn, fn, centres, sign, cst, k_load, k_axis,
+                                 on_nut, coef_s, coef_n, grid, scale, axial_load_n, rear, front,
+                                 b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b, trial, True)
         x, xn = xn, x
-        v, vn = vn, v
+        u, un = un, u
         cum, cn = cn, cum
         fhat, fn = fn, fhat
+        axial = ax_n
         norm = nn
         cur, trial = trial, cur
-    contact_angles(x, 0.0, v, centres, cst, on_nut, cur[4])
-    return x, v, fhat, norm <= tol, it, norm, cur[3], cur[4], cur[7]
+    _angles(elastic, x, u, centres, cst, on_nut, cur[4])
+    return x, u, fhat, norm <= tol, it, norm, cur[3], cur[4], cur[7]
 
 
 @_jit
-def _solve_active_any(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
-                      grid, scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f,
-                      order, comp_a, comp_b, tol, max_it, max_rate, disp_limit):
-    """
-    ``solve_active`` (u of shape (1,): rigid) or ``solve_active_elastic`` (u (N,), ``order``).
-
-    The elastic load path is given by ``order`` of size N; a rigid nut and shaft by an empty
-    ``order``.  Returns the same tuple, with u as an array in both cases.
-    """
-    if order.shape[0]:
-        return solve_active_elastic(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut,
-                                    coef_s, coef_n, grid, scale, axial_load_n, rear, front, b_r,
-                                    b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b, tol, max_it,
-                                    max_rate, disp_limit)
-    xo, uo, fo, ok, it, norm, terms, per_contact, speed = solve_active(
-        x, u[0], fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid, scale,
-        axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, tol, max_it, max_rate,
-        disp_limit)
-    ua = np.empty(1)
-    ua[0] = uo
-    return xo, ua, fo, ok, it, norm, terms, per_contact, speed
+def _angles(elastic, x, u, centres, cst, on_nut, per_contact):
+    """``contact_angles`` of ``newton``'s solution (u: shared (1,) or per ball (N,))."""
+    if elastic:
+        contact_angles(x, 0.0, u, centres, cst, on_nut, per_contact)
+    else:
+        contact_angles(x, u[0], np.zeros(x.shape[0]), centres, cst, on_nut, per_contact)
 
 
 @_jit(exact=True)
@@ -1105,7 +1070,7 @@ def solve_active_set(x, u, f_all, active, centres, sign, cst, k_load, k_axis, on
     else close the open pairs whose rear ball orbits faster, until neither happens.
     f_all: B2B forces per candidate pair in units of ``scale``; budget < 0: no iteration cap.
     Returns (x, u, f_all, active, converged, budget_exhausted, iterations, norm, terms,
-    per_contact); u as in ``_solve_active_any``.
+    per_contact); u as in ``newton``.
     """
     p = pair_rear.shape[0]
     active = active.copy()
@@ -1122,7 +1087,7 @@ def solve_active_set(x, u, f_all, active, centres, sign, cst, k_load, k_axis, on
         front = pair_front[idx]
         f0 = np.maximum(f_all[idx], 0.0)
         left = max(budget - total_it, 0) if budget >= 0 else max_it
-        x, u, f_hat, ok, it, norm, terms, per_contact, _ = _solve_active_any(
+        x, u, f_hat, ok, it, norm, terms, per_contact, _ = newton(
             x, u, f0, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid, scale,
             axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b, tol,
             min(max_it, left), max_rate, disp_limit)

@@ -9,12 +9,13 @@ the nut, and equal orbit rates across each active contact (Eq. 60).
 Block structure: a ball's equations involve only its own state, u and the forces of its (at
 most two) B2B contacts.  Two implementations of the Newton iteration for one active set:
 
-- ``kernel.solve_active`` (numba, the default): exact Jacobian, including the derivatives of
-  the B2B friction direction, which couple touching balls.  The system is block tridiagonal
-  along each chain (blocks of a ball's six states and the force of the contact behind it),
-  bordered by u.  A block Thomas sweep per chain and a Schur complement for u solve it, so the
-  cost per iteration is linear in the number of balls, and convergence stays quadratic along
-  long chains.
+- ``kernel.newton`` (numba, the default; one iteration for the rigid and the elastic load
+  path, ``kernel.solve_active`` / ``solve_active_elastic`` call it): exact Jacobian, including
+  the derivatives of the B2B friction direction, which couple touching balls.  The system is
+  block tridiagonal along each chain (blocks of a ball's six states and the force of the
+  contact behind it), bordered by u.  A block Thomas sweep per chain and a Schur complement
+  for u solve it, so the cost per iteration is linear in the number of balls, and convergence
+  stays quadratic along long chains.
 - The numpy path (when numba is missing, or ``use_kernel = False``): all the 6x6 ball blocks
   are solved at once (batched LAPACK).  This leaves a tridiagonal system in the B2B forces,
   bordered by u, and u is eliminated by a Schur complement.  The direction of the B2B

@@ -104,6 +104,23 @@ class StepResult:
         return len(self.groups)
 
 
+def _as_displacements(u, shape):
+    """
+    Nut displacement(s) u as a writable contiguous float array of ``shape``.
+
+    (1,) rigid, (N,) elastic.  Never a read-only view: numba compiles another specialisation
+    of the kernel for read-only arrays (the look-ahead's first step once compiled it in the
+    live node's model thread, seconds after the node said ready).  An array that already
+    fits is passed as it is (the kernel copies it): np.broadcast_to costs 2-3 us a call.
+    """
+    if (isinstance(u, np.ndarray) and u.shape == shape and u.dtype == np.float64
+            and u.flags.c_contiguous and u.flags.writeable):
+        return u
+    if isinstance(u, float):
+        return np.full(shape, u)
+    return np.array(np.broadcast_to(u, shape), dtype=float)
+
+
 def isotonic_ring_projection(azimuth, separation, loop_length):
     """
     Move balls the least (L2) so that neighbours on the loop are >= ``separation`` apart.
@@ -316,13 +333,10 @@ class WholeScrew:
         st = solver.settings
         x, u = self._state[0], self._state[1]
         shape = (self.n,) if elastic is not None else (1,)
-        # np.array copies: a broadcast view is read-only, and numba compiles another
-        # specialisation for read-only arrays (the look-ahead's first step compiled it in
-        # the live node's model thread, seconds after the node said ready)
-        u = np.array(np.broadcast_to(u, shape), dtype=float)
+        u = _as_displacements(u, shape)
         if self._prev is not None:
             xp, up, fp, dp = self._prev
-            up = np.array(np.broadcast_to(up, shape), dtype=float)
+            up = _as_displacements(up, shape)
         else:
             xp, up, fp, dp = x, u, self._forces, 0.0
         path = elastic if elastic is not None else _RIGID
