@@ -414,7 +414,7 @@ class ModelRunner:
                             abs(sample.stamp_s - self._model_stamp))
 
     def _answer(self, sample, extra, stepped, model_age_s):
-        """The Prediction for ``sample`` from the current state, with its feedforward."""
+        """Return the Prediction for ``sample`` from the current state, with its feedforward."""
         st = self._state
         total = st.torque_total_nm + extra
         converged = self._state_converged
