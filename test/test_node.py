@@ -12,6 +12,7 @@ import math
 import pytest
 from rclpy.parameter import Parameter
 
+from bb_friction_ros import interface
 from bb_friction_ros.bags import Event
 from bb_friction_ros.config import bundled_config, ConfigError
 from bb_friction_ros.node import FrictionNode, main
@@ -156,9 +157,9 @@ def test_console_script_with_bundled_params_file(ros_context, repo_root):
                              str(repo_root / "config" / "friction_node.yaml")])
     io = Node("script_probe", context=ros_context)
     got = []
-    io.create_subscription(FrictionPrediction, "friction/prediction", got.append, 10)
-    pub_s = io.create_publisher(JointState, "nut_state", 10)
-    pub_l = io.create_publisher(WrenchStamped, "axial_load", 10)
+    io.create_subscription(FrictionPrediction, interface.PREDICTION, got.append, 10)
+    pub_s = io.create_publisher(JointState, interface.NUT_STATE, 10)
+    pub_l = io.create_publisher(WrenchStamped, interface.AXIAL_LOAD, 10)
     ex = SingleThreadedExecutor(context=ros_context)
     ex.add_node(io)
     try:
