@@ -355,6 +355,7 @@ class LiveSchedule:
             "profiles_abandoned": self._profiles_abandoned,
             "profile_errors": self._profile_errors,
             "resets": stats.resets,
+            "late_samples": stats.late_samples,
             "lag_s": 0.0 if latest is None else latest.model_age_s,
             "received_nut_state": self._received["nut_state"],
             "received_axial_load": self._received["axial_load"],

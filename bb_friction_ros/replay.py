@@ -452,6 +452,7 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress,
         "samples": series.rows,
         "rejected": dict(stats.rejected),
         "resets": stats.resets,
+        "late_samples": stats.late_samples,
         # the shared runner's schedule (issue 20) and stamp stalls (issue 23, finding 2)
         "model_substeps": stats.substeps,
         "stamp_stalls": stats.stamp_stalls,

@@ -198,8 +198,8 @@ def test_backward_stamps_are_counted_and_logged_at_most_once_per_period():
     j = ("nut_joint",)
     try:
         feed(live, [Event("axial_load", 0.0, value=1500.0)])
-        # every other sample goes back in time: 50 resets
-        events = [Event("nut_state", 10.0 + (0.01 * k if k % 2 == 0 else -0.01 * k), j,
+        # every other sample goes back in time, further than a late stamp: 50 resets
+        events = [Event("nut_state", 10.0 + (0.01 * k if k % 2 == 0 else -1.0 - 0.01 * k), j,
                         (0.06 * k,), (6.0,)) for k in range(101)]
         feed(live, events)
         warnings = [t for level, t in rec.logs if level == "warning"]

@@ -132,6 +132,9 @@ class Probe:
 
     def close(self):
         self.executor.shutdown()
+        # destroying the nodes while the spin thread is still in a wait raced it
+        # (AttributeError on a destroyed guard condition, seen once under load)
+        self.thread.join(timeout=10.0)
         self.node.destroy_node()
         self.io.destroy_node()
 

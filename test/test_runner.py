@@ -68,7 +68,7 @@ def test_schedule_follows_stamps_and_resets_on_backwards_time():
     assert preds[2].torque_total_nm == 0.0 and preds[2].model_age_s == pytest.approx(0.009)
     assert preds[2].torque_empirical_nm == 0.0
     assert [c for c in screw.calls if c[0] == "step"][1][2] == pytest.approx(0.010)
-    p = runner.process(InputSample(0.001, 5.0, 1.0, 100.0))     # stamps went backwards
+    p = runner.process(InputSample(-0.5, 5.0, 1.0, 100.0))   # back by more than a late stamp
     assert runner.stats.resets == 1 and p.stepped and screw.calls[-2] == ("reset", 5.0)
     p = runner.process(InputSample(0.020, 6.0, 1.0, 100.0), allow_step=False)
     assert not p.stepped and runner.stats.skipped_steps == 1
@@ -377,3 +377,59 @@ def test_replay_of_a_bag_with_stamps_at_zero_follows_the_load_and_warns(tmp_path
     col = rows[0].split(",").index("torque_pred_nm")
     first, last = float(rows[1].split(",")[col]), float(rows[-1].split(",")[col])
     assert last > 3.0 * first > 0.0       # the model followed the load to 6000 N
+
+
+def _stream(late_at=None, late_by_s=0.0105, n=400, rev_s=1.0):
+    """1 kHz samples of a steady 1 rev/s motion at 1500 N; sample ``late_at`` stamped late."""
+    w = 2 * math.pi * rev_s
+    out = []
+    for k in range(n):
+        t = 1e-3 * k
+        stamp = t - late_by_s if k == late_at else t
+        out.append(InputSample(stamp, w * t, w, 1500.0))
+    return out
+
+
+def test_one_late_stamp_is_answered_from_the_state_not_a_reset():
+    """
+    Issue 23, finding 6 (the runner's part): one nut_state stamped 10.5 ms late (jitter)
+    reset the balls' history, and every later prediction moved (up to 0.14 N m on the demo
+    bag).  Now it is answered from the current state and counted; the stream goes on as if
+    it had not come.
+    """
+    from bb_friction_ros.config import bundled_config
+    from bb_friction_ros.runner import build_runner
+    cfg = bundled_config("ball_screw.yaml")
+    clean, late = build_runner(cfg, 100.0), build_runner(cfg, 100.0)
+    a = [clean.process(s) for s in _stream()]
+    b = [late.process(s) for s in _stream(late_at=202)]
+    assert not a[202].stepped, "the late sample would have stepped: the comparison is void"
+    assert late.stats.resets == 0 and late.stats.late_samples == 1
+    assert not b[202].stepped and b[202].converged
+    assert b[202].model_age_s > 0.0
+    assert b[202].torque_total_nm == b[201].torque_total_nm
+    assert b[202].feedforward_nm * b[202].nut_velocity_rad_s >= 0.0
+    # every other sample is answered exactly as without the late one
+    assert [p.torque_total_nm for i, p in enumerate(b) if i != 202] == \
+        [p.torque_total_nm for i, p in enumerate(a) if i != 202]
+
+
+@pytest.mark.parametrize("back_s,run,resets", [
+    (0.0105, 1, 0),        # one late sample
+    (0.0105, 3, 0),        # LATE_SAMPLES_MAX in a row: still late
+    (0.0105, 4, 1),        # one more: the source restarted
+    (0.5, 1, 1),           # further back than LATE_STAMP_TOLERANCE_S: a restart
+])
+def test_late_samples_and_restarts_are_told_apart(back_s, run, resets):
+    from bb_friction_ros.bags import LATE_SAMPLES_MAX, LATE_STAMP_TOLERANCE_S
+    assert LATE_SAMPLES_MAX == 3 and LATE_STAMP_TOLERANCE_S < 0.5   # the cases above
+    runner = ModelRunner(RecordingScrew(), model_rate_hz=100.0)
+    for k in range(50):
+        runner.process(InputSample(1e-3 * k, 1e-3 * k, 1.0, 100.0))
+    t_last = 0.049
+    for j in range(run):
+        s = InputSample(t_last - back_s + 1e-4 * j, t_last, 1.0, 100.0)
+        assert runner.step_due(s) == (j == LATE_SAMPLES_MAX or back_s > LATE_STAMP_TOLERANCE_S)
+        runner.process(s)
+    assert runner.stats.resets == resets
+    assert runner.stats.late_samples == min(run, LATE_SAMPLES_MAX) * (back_s < 0.1)

@@ -75,9 +75,8 @@ def write_report(out, a, summary, plots=True, validation=None):
     acc = summary.get("acceleration", {})
     lines = ["# Discrepancy report", ""]
     # issue 19: where the workflow is worse than the rigid-body reference, say so first
-    lines += [f"**Warning:** {w}." for w in summary.get("warnings", [])]
-    if summary.get("warnings"):
-        lines.append("")
+    for w in summary.get("warnings", []):
+        lines += [f"**Warning:** {w}.", ""]
     lines += [f"**Verdict: {summary['verdict']}.** {summary['reason']}.", ""]
     if summary.get("identified_from_data_only"):
         lines += ["**No model of this screw:** the prediction is zero, so every term below "
@@ -97,13 +96,13 @@ def write_report(out, a, summary, plots=True, validation=None):
         f"- held-out RMSE: before {_f(summary['rmse_before_nm'])} N m, after "
         f"{_f(summary['rmse_after_nm'])} N m",
     ]
-    lines += reference_lines(summary)
     if summary.get("reducible_removed_fraction") is not None:
         lines.append(f"- share of the reducible held-out RMSE (RMSE before - noise) removed: "
                      f"{summary['reducible_removed_fraction']:.0%}")
     if "augmented_config" in summary:
         lines.append(f"- augmented config: `{summary['augmented_config']}` (replay with "
                      f"`bb-friction replay BAG --config {summary['augmented_config']}`)")
+    lines += reference_lines(summary)
     lines += ["", "## Which effect", ""]
     lines += _effects_table(summary) if summary["effects"] else ["No term selected."]
     for amb in summary.get("ambiguities", []):
