@@ -81,6 +81,9 @@ class PhysicalSettings:
                                          "moves the oversize by less", lo=0.0, lo_open=True)
     refine_runs: int = field(3, "1", "model runs of the parabolic refinement per candidate "
                              "refined", lo=0, hi=50)
+    refine_candidates: int = field(2, "1", "candidates refined at most: the best, and the "
+                                   "next ones whose best coarse trial beats no physical "
+                                   "change", lo=1, hi=3)
     max_nonconverged_fraction: float = field(0.01, "1", "a trial whose model steps fail to "
                                              "converge more often than this is not used",
                                              lo=0.0, hi=1.0)
@@ -503,16 +506,30 @@ def select_with_physics(physics, rec_all, ok, fit_mask, r, x_fit, settings, skip
 
         for (kind, _), run in zip(tried, runs):
             consider(kind, run)
-        best = min((o for os_ in outcomes.values() for o in os_), key=lambda o: o.score,
-                   default=None)
-        if best is None:
+        # the best trial of each candidate, best first; the first is refined, and every
+        # other that beats "none" at its coarse trial up to ``refine_candidates`` (a
+        # parameter with a threshold, such as the preload, can lose on a coarse grid)
+        tops = sorted((min(os_, key=lambda o: o.score) for os_ in outcomes.values() if os_),
+                      key=lambda o: o.score)
+        if not tops:
             return none.terms, none.trace, none.ctx, search
+        finalists = [o for i, o in enumerate(tops[:ps.refine_candidates])
+                     if i == 0 or o.score < none.score]
+        refined = [_refine(o.kind, o, outcomes[o.kind.name], bases[o.kind.name], runner,
+                           consider, x_fit, r_fit, tau, ps, none) for o in finalists]
+        best = min(refined, key=lambda o: o.score)
         kind = best.kind
-        best = _refine(kind, best, outcomes[kind.name], bases[kind.name], runner, consider,
-                       x_fit, r_fit, tau, ps, none)
         interval = _interval(kind, best, outcomes[kind.name], bases[kind.name], x_fit, r_fit,
                              tau, none)
-        if best.score < none.score and \
+        if interval[0] is None:
+            # the best value is at the edge of what was tried: not a minimum of its profile
+            # (a parameter the bracket did not resolve, or another effect it stands in for)
+            search.trials.append({"candidate": kind.name, "param": kind.param,
+                                  "value": best.value, "penalised_bic": best.score,
+                                  "terms": list(best.terms.names),
+                                  "note": "not adopted: the best value is at the edge of the "
+                                          "values tried, not a minimum"})
+        if interval[0] is not None and best.score < none.score and \
                 cv_rmse(best.members, x_fit, r_fit - best.delta_fit, settings.cv_folds) < \
                 cv_rmse(none.members, x_fit, r_fit, settings.cv_folds):
             delta = np.nan_to_num(best.run.total_nm[ok] - base_t)
