@@ -406,6 +406,7 @@ class PhysicalSearch:
     rejected: PhysicalChoice = None     # chosen on the fit part, no better held out
     validation_runs: int = 0
     validation_wall_s: float = 0.0
+    notes: list = dataclasses.field(default_factory=list)
 
     def as_dict(self):
         """Return summary.json → ``physical``."""
@@ -413,7 +414,8 @@ class PhysicalSearch:
                 "workers": self.workers,
                 "chosen": self.chosen.effect() if self.chosen else None,
                 "penalised_bic_none": self.none_score,
-                "trials": self.trials, "identifiability": self.identifiability}
+                "trials": self.trials, "identifiability": self.identifiability,
+                "notes": self.notes}
 
 
 def _penalised(trace, extra_params, settings, tau, n):
@@ -527,11 +529,9 @@ def select_with_physics(physics, rec_all, ok, fit_mask, r, x_fit, settings, skip
         if interval[0] is None:
             # the best value is at the edge of what was tried: not a minimum of its profile
             # (a parameter the bracket did not resolve, or another effect it stands in for)
-            search.trials.append({"candidate": kind.name, "param": kind.param,
-                                  "value": best.value, "penalised_bic": best.score,
-                                  "terms": list(best.terms.names),
-                                  "note": "not adopted: the best value is at the edge of the "
-                                          "values tried, not a minimum"})
+            search.notes.append(f"{kind.name}: its best value {best.value:.4g} is at the "
+                                "edge of the values tried, not a minimum of its profile: "
+                                "not adopted")
         if interval[0] is not None and best.score < none.score and \
                 cv_rmse(best.members, x_fit, r_fit - best.delta_fit, settings.cv_folds) < \
                 cv_rmse(none.members, x_fit, r_fit, settings.cv_folds):
@@ -881,6 +881,7 @@ def report_lines(a, summary):
               "No physical parameter of the model explains the residual better than the "
               "empirical terms (or nothing): the config's contact-angle deviation, friction "
               "coefficient and preload stand.", ""]
+    lines += [f"Note: {n}." for n in p.get("notes", [])]
     if p.get("rejected"):
         lines += [f"`{p['rejected']['name']}` was chosen on the fit part but does not improve "
                   "the held-out part, so it is not adopted.", ""]
