@@ -53,7 +53,7 @@ def add_discrepancy_parser(subparsers):
                    "log time as stamp), read with --torque-constant-nm-per-a")
     p.add_argument("--physical", action="store_true",
                    help="also try the model's own parameters (contact-angle deviation, friction "
-                        "coefficient, preload) as candidates: ~15-20 model runs over the "
+                        "coefficient, preload) as candidates: ~18-24 model runs over the "
                         "recording (issue 21; settings discrepancy.physical)")
     p.add_argument("--no-plots", action="store_true", help="write no PNG figures")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
