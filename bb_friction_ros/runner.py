@@ -297,6 +297,19 @@ class ModelRunner:
         return sample.stamp_s == self._last_stamp \
             and sample.axial_load_n != self._model_load
 
+    def due_between(self, sample, later):
+        """
+        Return True if a step at ``sample`` would leave one due again at ``later``.
+
+        The schedule's test (a change of direction, ``model_step_deg`` of rotation, the time
+        floor; at the current scale) between two inputs; the live node uses it to tell that
+        its model fell behind the inputs waiting for it.
+        """
+        return _sign(later.nut_velocity_rad_s) != _sign(sample.nut_velocity_rad_s) \
+            or abs(later.nut_angle_rad - sample.nut_angle_rad) \
+            >= self.step_rad * self.scale - ANGLE_RESOLUTION_RAD \
+            or later.stamp_s - sample.stamp_s >= self.period_s * self.scale - STAMP_RESOLUTION_S
+
     def step_due(self, sample):
         """
         Return True if ``process(sample)`` would step the model (or reset it).

@@ -901,15 +901,14 @@ def report_lines(a, summary):
 
 def plot_b2b_share(out, a):
     """Write ``b2b_share.png``: the B2B share of the calibrated model over the recording."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
     choice = chosen(a.physical)
     ok = a.physical.usable
     t = a.recording.t_s
     share, added = b2b_share(choice.run, ok)
     base_share, base_added = b2b_share(a.physical.base, ok)
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
+    fig = Figure(figsize=(10, 6))
+    ax1, ax2 = fig.subplots(2, 1, sharex=True)
     ax1.plot(t, choice.run.total_nm[ok], lw=0.7, label="model torque, calibrated")
     ax1.plot(t, choice.run.b2b_nm[ok], lw=0.7, label="its B2B part")
     ax1.plot(t, a.physical.base.total_nm[ok], lw=0.5, alpha=0.6, label="model, config values")
@@ -926,5 +925,4 @@ def plot_b2b_share(out, a):
     fig.suptitle("Ball-to-ball friction over the recording")
     fig.tight_layout()
     fig.savefig(out / B2B_FIGURE, dpi=100)
-    plt.close(fig)
     return B2B_FIGURE
