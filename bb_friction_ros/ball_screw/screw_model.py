@@ -117,7 +117,10 @@ class ScrewModel:
         while sol.converged and current != target:
             ratio = target / current
             factor = st.continuation_load_factor
-            step = target if 1.0 / factor <= ratio <= factor else \
+            # A zero load is never reached by geometric steps (they halve towards it without
+            # end: a preloaded screw, which converges at every one of them, hung the cold start
+            # at 0 N); it is taken in one step from the reference load.
+            step = target if 1.0 / factor <= ratio <= factor or ratio <= 0.0 else \
                 current * (factor if ratio > 1.0 else 1.0 / factor)
             grow = (step / current) ** (2.0 / 3.0)
             x, u = sol.x.copy(), sol.u * grow
