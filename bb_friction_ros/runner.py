@@ -282,15 +282,23 @@ class ModelRunner:
         """Nut rotation between scheduled steps now [rad] (coarser when behind)."""
         return self.step_rad * self.scale
 
+    def _due_after(self, direction, angle_rad, stamp_s, later):
+        """
+        Return True if a step is due at ``later`` after one at (direction, angle, stamp).
+
+        A change of direction, ``model_step_deg`` of rotation or the time floor, at the
+        current scale.  One test for the model state (``_due``) and between two waiting
+        inputs (``due_between``).
+        """
+        return _sign(later.nut_velocity_rad_s) != direction \
+            or abs(later.nut_angle_rad - angle_rad) \
+            >= self.step_rad * self.scale - ANGLE_RESOLUTION_RAD \
+            or later.stamp_s - stamp_s >= self.period_s * self.scale - STAMP_RESOLUTION_S
+
     def _due(self, sample):
         """Whether a step is due for ``sample`` (a state exists, stamps not backwards)."""
-        if _sign(sample.nut_velocity_rad_s) != self._model_direction:
-            return True
-        if abs(sample.nut_angle_rad - self._model_angle) \
-                >= self.step_rad * self.scale - ANGLE_RESOLUTION_RAD:
-            return True
-        if sample.stamp_s - self._model_stamp \
-                >= self.period_s * self.scale - STAMP_RESOLUTION_S:
+        if self._due_after(self._model_direction, self._model_angle, self._model_stamp,
+                           sample):
             return True
         # Stamps that do not advance leave the time floor no time: a load change then steps
         # at once, so a state of another load is never answered as fresh (issue 23, 2).
@@ -301,14 +309,10 @@ class ModelRunner:
         """
         Return True if a step at ``sample`` would leave one due again at ``later``.
 
-        The schedule's test (a change of direction, ``model_step_deg`` of rotation, the time
-        floor; at the current scale) between two inputs; the live node uses it to tell that
-        its model fell behind the inputs waiting for it.
+        The live node uses it to tell that its model fell behind the inputs waiting for it.
         """
-        return _sign(later.nut_velocity_rad_s) != _sign(sample.nut_velocity_rad_s) \
-            or abs(later.nut_angle_rad - sample.nut_angle_rad) \
-            >= self.step_rad * self.scale - ANGLE_RESOLUTION_RAD \
-            or later.stamp_s - sample.stamp_s >= self.period_s * self.scale - STAMP_RESOLUTION_S
+        return self._due_after(_sign(sample.nut_velocity_rad_s), sample.nut_angle_rad,
+                               sample.stamp_s, later)
 
     def step_due(self, sample):
         """
