@@ -8,7 +8,7 @@ inputs off the wire.  Every sample reaches the ``runner.ModelRunner`` replay use
 order, so live equals replay.  Topics, types and QoS: ``interface.py``; subscribes
 ``nut_state``, ``axial_load``; publishes ``friction/prediction`` (stamped with the input's
 stamp), ``friction/feedforward`` (Float64MultiArray [torque], the ros2_control forward-command
-convention; the runner's safe value), ``friction/feedforward_profile`` (every model step),
+convention; the runner's safe value), ``friction/feedforward_profile`` (a step per model period),
 ``friction/contact_groups`` (on change and at ``groups_rate_hz``) and ``/diagnostics``.
 """
 

@@ -211,7 +211,9 @@ def reproduce_theta_amplitude(out, coarse=False):
         out_rows.append({
             "quantity": f"sweep {name} {amp:.2f} deg: peak share %", "source": "Fig. 21",
             "paper": share, "ours": 100 * float(rows["fig21_peak_b2b_share"][i]), "unit": "%",
-            "note": (f"peak at {math.degrees(rows['fig21_peak_nut_angle_rad'][i]):.0f} deg "
+            "note": (f"peak at {math.degrees(rows['fig21_peak_nut_angle_rad'][i]):.0f} deg, "
+                     "smoothed "
+                     f"{math.degrees(rows['fig21_peak_nut_angle_smoothed_rad'][i]):.0f} deg "
                      f"(paper {paper.B2B_PEAK_NUT_ANGLE.value:g}), zero at "
                      + ("never" if not np.isfinite(zero) else f"{math.degrees(zero):.0f} deg")
                      + f" ({paper.B2B_ZERO_NUT_ANGLE.value:g}), "

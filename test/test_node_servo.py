@@ -68,6 +68,10 @@ def test_flood_keeps_answer_age_bounded_and_counts_everything(ros_context):
         assert live["torque_b2b_nm"] == core.torque_b2b_nm
 
 
+# How long the probe's executor waits for work before it looks at its stop flag [s].
+SPIN_POLL_S = 0.05
+
+
 class Probe:
     """An in-process FrictionNode with a subscriber on every output and a publisher of inputs."""
 
@@ -102,11 +106,27 @@ class Probe:
         self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.node)
         self.executor.add_node(self.io)
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+        # Our own spin loop, stopped before the executor is shut down: rclpy's
+        # Executor.shutdown destroys its guard condition without waiting for a spin in
+        # progress (its wait for the work tracker is unreachable in Jazzy), so a thread in
+        # executor.spin() then raised inside rclpy's wait (a destroyed guard condition,
+        # reported by pytest as PytestUnhandledThreadExceptionWarning).  An error in the loop
+        # is kept and raised by close(): the test fails on it instead of warning.
+        self._spinning = threading.Event()
+        self._spinning.set()
+        self._spin_errors = []
+        self.thread = threading.Thread(target=self._spin, daemon=True)
         self.thread.start()
         self._until(lambda: self.pub_state.get_subscription_count() > 0
                     and self.pub_load.get_subscription_count() > 0)
         time.sleep(0.2)
+
+    def _spin(self):
+        try:
+            while self._spinning.is_set():
+                self.executor.spin_once(timeout_sec=SPIN_POLL_S)
+        except BaseException as exc:     # re-raised in the test's thread by close()
+            self._spin_errors.append(exc)
 
     def _until(self, cond, timeout_s=20.0):
         deadline = time.monotonic() + timeout_s
@@ -131,12 +151,15 @@ class Probe:
         self._until(lambda: len(self.preds) > n and len(self.ff) > n)
 
     def close(self):
-        self.executor.shutdown()
-        # destroying the nodes while the spin thread is still in a wait raced it
-        # (AttributeError on a destroyed guard condition, seen once under load)
+        # the spin loop ends first (within SPIN_POLL_S), then the executor and the nodes go
+        self._spinning.clear()
         self.thread.join(timeout=10.0)
+        assert not self.thread.is_alive(), "the executor thread did not stop"
+        self.executor.shutdown()
         self.node.destroy_node()
         self.io.destroy_node()
+        if self._spin_errors:
+            raise self._spin_errors[0]
 
 
 def test_profile_published_at_every_model_step(ros_context):

@@ -632,7 +632,7 @@ def identifiability(choice, best, none, x, r, settings, tau, skip, fixed):
     ``bic_threshold``: one ambiguous effect (the physical parameter is kept).  The best
     empirical-only model is compared as well.
     """
-    from bb_friction_ros.discrepancy.selection import candidates, fit
+    from bb_friction_ros.discrepancy.selection import candidates, fit, swap_evidence
     name = choice.kind.name
     twin = TWINS[name]
     cands = {c.name: c for c in candidates(x, settings, skip, fixed)}
@@ -642,9 +642,7 @@ def identifiability(choice, best, none, x, r, settings, tau, skip, fixed):
     out = []
     if twin in cands:
         members = tuple(m for m in best.members if m[0].name != twin) + ((cands[twin], None),)
-        g = fit(members, x, r, None, tau)
-        delta = g.bic - bic_phys if g.physical else math.inf
-        separated = delta >= settings.bic_threshold
+        delta, separated = swap_evidence(members, bic_phys, x, r, tau, settings)
         if separated:
             text = (f"{name} rather than the empirical {twin}: BIC {delta:.1f} worse with "
                     f"{twin} in its place")

@@ -476,6 +476,20 @@ def cv_rmse(members, x, r, folds):
     return math.sqrt(sq / n)
 
 
+def swap_evidence(members, bic, x, r, tau, settings):
+    """
+    Return (BIC difference, separated) of the model ``members`` against one of BIC ``bic``.
+
+    The evidence of an ambiguity check: a chosen effect's near-twin is swapped in and the
+    model refitted to ``r``; the difference (inf when an amplitude leaves its physical sign or
+    range) below ``bic_threshold`` means the data cannot tell the two apart.  Used here for
+    AMBIGUOUS_PAIRS and by discrepancy.physical for a physical parameter and its twin.
+    """
+    g = fit(members, x, r, None, tau)
+    delta = (g.bic - bic) if g.physical else math.inf
+    return delta, bool(delta >= settings.bic_threshold)
+
+
 def ambiguities(ctx, x, r, settings):
     """
     Name the pairs of chosen terms whose columns the data cannot separate (AMBIGUOUS_PAIRS).
@@ -496,11 +510,9 @@ def ambiguities(ctx, x, r, settings):
         cands = {c.name: c for c in candidates(x, settings)}
         members = tuple((cands[other], None) if c.name == chosen else (c, nl)
                         for c, nl in f.members)
-        g = fit(members, x, r, None, ctx.tau)
+        delta, separated = swap_evidence(members, f.bic, x, r, ctx.tau, settings)
         standstill = int(np.sum(np.abs(x.nut_velocity_rad_s)
                                 <= settings.standstill_speed_rad_s))
-        delta = (g.bic - f.bic) if g.physical else math.inf
-        separated = delta >= settings.bic_threshold
         if separated:
             text = (f"{chosen} rather than {other}: the {standstill} standstill samples of "
                     f"the fit part decide it (BIC {delta:.1f} worse with {other})")

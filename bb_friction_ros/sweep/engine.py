@@ -49,6 +49,7 @@ import pyarrow.parquet as pq
 from bb_friction_ros import __version__
 from bb_friction_ros.config import ConfigError, MEMORY_LIMIT_MIB, format_bytes
 from bb_friction_ros.sweep import CONNECT_TIMEOUT_S, IN_FLIGHT_PER_THREAD
+from bb_friction_ros.sweep.files import fsync_dir, write_text_atomic
 from bb_friction_ros.sweep.models import INVALID, MODELS, OK, evaluate
 
 LOCALHOST = "127.0.0.1"
@@ -155,15 +156,6 @@ def write_atomic(table, path):
     fsync_dir(path.parent)
 
 
-def fsync_dir(directory):
-    """Make a rename in ``directory`` durable (POSIX: fsync the directory itself)."""
-    fd = os.open(directory, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
-
 def _part_problem(spec, schema, path):
     """
     Return (batch, rows, None) for a whole part file of this spec, else (None, None, why).
@@ -259,13 +251,7 @@ def check_manifest(spec, out_dir):
                 "n_samples": spec.n_samples, "n_batches": spec.n_batches,
                 "batch_size": spec.batch_size, "source": spec.source,
                 "package_version": __version__, "spec": spec.canonical()}
-    tmp = path.with_name(MANIFEST + ".tmp")
-    with open(tmp, "w") as fh:          # fsynced as the parts are (write_atomic)
-        fh.write(json.dumps(manifest, indent=2))
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
-    fsync_dir(out_dir)
+    write_text_atomic(path, json.dumps(manifest, indent=2))
 
 
 def check_results_memory(spec, memory_limit_mib=None):

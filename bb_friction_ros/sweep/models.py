@@ -79,6 +79,8 @@ WHOLE_SCREW_OUTPUTS = (
     # not applied: the paper's features start at 0 deg).
     Output("fig21_peak_b2b_share", "1", "largest T_B2B / T_B2G (paper 49.6 %)"),
     Output("fig21_peak_nut_angle_rad", "rad", "nut angle of that peak (paper 126 deg)"),
+    Output("fig21_peak_nut_angle_smoothed_rad", "rad", "nut angle of the peak of the share "
+           "averaged over simulation.PEAK_SMOOTHING_WINDOW_RAD (the raw peak jitters)"),
     Output("fig21_zero_nut_angle_rad", "rad", "first nut angle after the peak without B2B "
            "torque (paper 306 deg; NaN: never)"),
     Output("fig21_b2g_torque_variation", "1", "(max - min) / mean of the ball-groove torque "
@@ -312,6 +314,7 @@ def run_whole_screw(cfg, params, options):
                                     [s.torque_b2b_nm for s in steps], [s.n_groups for s in steps])
     out.update(fig21_peak_b2b_share=f21["peak_b2b_share"],
                fig21_peak_nut_angle_rad=f21["peak_b2b_nut_angle_rad"],
+               fig21_peak_nut_angle_smoothed_rad=f21["peak_b2b_nut_angle_smoothed_rad"],
                fig21_zero_nut_angle_rad=f21["b2b_zero_nut_angle_rad"],
                fig21_b2g_torque_variation=f21["b2g_torque_variation"])
     return out, OK, ""

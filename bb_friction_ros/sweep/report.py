@@ -27,6 +27,7 @@ import os
 
 import numpy as np
 
+from bb_friction_ros.sweep.files import write_text_atomic
 from bb_friction_ros.sweep.models import FAILED, INVALID, MODELS, NONCONVERGED, OK
 
 QUANTILES = (0.01, 0.05, 0.25, 0.5, 0.75, 0.95, 0.99)
@@ -220,7 +221,5 @@ def write_summary(spec, table, history, out_dir):
     """Write DIR/summary.json; return the summary."""
     summary = _json_safe(summarize(spec, table, history))
     path = out_dir / "summary.json"
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(summary, indent=2))
-    os.replace(tmp, path)
+    write_text_atomic(path, json.dumps(summary, indent=2))
     return summary

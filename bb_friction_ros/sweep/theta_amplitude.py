@@ -101,6 +101,11 @@ def calibrate_amplitude(rows, elastic, target=PAPER_PEAK_SHARE, window_rad=FIT_W
     return float((target - icpt) / slope), scatter / abs(float(slope))
 
 
+# Features that also have a smoothed value, drawn beside the raw one (the raw peak angle jumps
+# between neighbouring local maxima from one amplitude to the next; issue 20 item 6).
+SMOOTHED = {"fig21_peak_nut_angle_rad": "fig21_peak_nut_angle_smoothed_rad"}
+
+
 def plot_theta_sweep(rows, path, calibrated_deg=None, config_deg=None):
     """Plot the whole sweep: each Fig. 21 feature over the amplitude, rigid and elastic, paper."""
     from matplotlib.figure import Figure
@@ -121,6 +126,10 @@ def plot_theta_sweep(rows, path, calibrated_deg=None, config_deg=None):
             amp = np.degrees(rows[AMPLITUDE][sel])
             k = np.argsort(amp)
             ax.plot(amp[k], factor * rows[name][sel][k], style, ms=4, label=text)
+            smoothed = SMOOTHED.get(name)
+            if smoothed in rows:
+                ax.plot(amp[k], factor * rows[smoothed][sel][k], style[0] + ":", ms=3,
+                        mfc="none", label=text + ", smoothed")
         if stated is not None:
             ax.axhline(stated, color="r", lw=0.8, label="paper")
         else:

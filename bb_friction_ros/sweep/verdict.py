@@ -21,12 +21,12 @@ ordinary, resumable sweeps), the verdict to ``DIR/verdict.json``.
 import dataclasses
 import json
 import math
-import os
 from pathlib import Path
 
 import numpy as np
 
 from bb_friction_ros.config import ConfigError
+from bb_friction_ros.sweep.files import write_text_atomic
 from bb_friction_ros.sweep.models import MODELS
 from bb_friction_ros.sweep.report import column, with_numbers
 
@@ -145,7 +145,5 @@ def run_verdict(spec, out_dir, band_rel, reference_torque_nm=None, workers=None,
         "units": {n: MODELS["whole_screw"].output(n).unit for n in NEEDED},
     }
     path = out_dir / "verdict.json"
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(result, indent=2))
-    os.replace(tmp, path)
+    write_text_atomic(path, json.dumps(result, indent=2))
     return result

@@ -285,6 +285,31 @@ def test_write_atomic_fsyncs_the_data_before_the_rename(tmp_path, linear_mc, mon
     assert pq.read_table(path).num_rows == 5
 
 
+def test_summary_and_manifest_are_fsynced_before_their_rename(
+        tmp_path, linear_mc, client, monkeypatch):
+    """The JSON files beside the parts (manifest, summary) are written like the parts:
+    data fsynced, then renamed, then the directory fsynced (a torn summary.json would be
+    read back as the sweep's result)."""
+    import os
+    calls = []
+    real_fsync, real_replace = os.fsync, os.replace
+
+    def fsync(fd):
+        calls.append(('fsync', os.path.basename(os.path.realpath(f'/proc/self/fd/{fd}'))))
+        return real_fsync(fd)
+
+    def replace(a, b):
+        calls.append(('replace', os.path.basename(str(a)), os.path.basename(str(b))))
+        return real_replace(a, b)
+
+    monkeypatch.setattr(engine.os, 'fsync', fsync)
+    monkeypatch.setattr(engine.os, 'replace', replace)
+    run_sweep(linear_mc(samples=5), tmp_path / 'out', client=client, **QUIET)
+    for name in ('summary.json', engine.MANIFEST):
+        i = calls.index(('replace', name + '.tmp', name))
+        assert calls[i - 1] == ('fsync', name + '.tmp') and calls[i + 1] == ('fsync', 'out')
+
+
 def test_compact_refuses_duplicate_sample_ids(tmp_path, linear_mc, client):
     """#14: the last guard: results.parquet never counts a sample twice."""
     import pyarrow as pa

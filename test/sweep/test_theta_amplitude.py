@@ -50,6 +50,10 @@ def test_whole_screw_sample_records_the_fig21_features():
     assert status == OK
     assert 0.3 < out["fig21_peak_b2b_share"] < 0.7
     assert math.radians(60) < out["fig21_peak_nut_angle_rad"] < math.radians(140)
+    # the smoothed peak is a peak of the same hump: within the smoothing window of the raw one
+    from bb_friction_ros.ball_screw.simulation import PEAK_SMOOTHING_WINDOW_RAD
+    assert abs(out["fig21_peak_nut_angle_smoothed_rad"] - out["fig21_peak_nut_angle_rad"]) \
+        <= PEAK_SMOOTHING_WINDOW_RAD
     assert out["max_groups"] == 4
     params["elastic_load_distribution"] = 2
     _, status, reason = evaluate(model, base, params, {"settle_steps": 0}, names)
