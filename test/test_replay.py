@@ -178,6 +178,32 @@ def test_packed_prediction_and_feedforward_are_rosbags_own_cdr():
             bytes(store.serialize_cdr(ff, FEEDFORWARD_TOPIC[1], little_endian=True))
 
 
+def test_packed_contact_groups_are_rosbags_own_cdr():
+    """The contact-group status is packed by replay too: byte for byte rosbags' CDR."""
+    from bb_friction_ros.bags import friction_typestore
+    from bb_friction_ros.replay import groups_cdr, GROUPS_TOPIC
+    store = friction_typestore()
+    t = store.types
+    rng = np.random.default_rng(1)
+    for k in range(200):
+        groups = []
+        for _ in range(k % 5):       # none to four groups; odd sizes move the alignment
+            n = int(rng.integers(0, 6))
+            ids = tuple(int(x) for x in rng.integers(0, 2**32 - 1, n))
+            n_forces = max(0, n - 1) if k % 7 else int(rng.integers(0, 4))
+            groups.append((ids, tuple(float(x) for x in rng.normal(0.0, 5.0, n_forces))))
+        sec, nanosec = int(rng.integers(0, 2**31 - 1)), int(rng.integers(0, 10**9))
+        angle, n_balls = float(rng.normal()), int(rng.integers(0, 100))
+        header = t["std_msgs/msg/Header"](
+            stamp=t["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec), frame_id="")
+        msg = t[GROUPS_TOPIC[1]](header=header, nut_angle_rad=angle, n_balls=n_balls, groups=[
+            t["bb_friction_msgs/msg/ContactGroup"](
+                ball_ids=np.array(ids, dtype=np.uint32),
+                b2b_forces_n=np.array(forces, dtype=np.float64)) for ids, forces in groups])
+        assert groups_cdr(tuple(groups), sec, nanosec, angle, n_balls) == \
+            bytes(store.serialize_cdr(msg, GROUPS_TOPIC[1], little_endian=True)), groups
+
+
 def test_replay_bag_feedforward_is_the_safe_value_of_unconverged_steps(tmp_path):
     """Finding 2: the output bag's feedforward carries the runner's safe value, as the node."""
     from rosbags.rosbag2 import Reader
