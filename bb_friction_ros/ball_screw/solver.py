@@ -40,7 +40,6 @@ References
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg import solve_banded
 
 from bb_friction_ros.ball_screw import kernel
 from bb_friction_ros.ball_screw.single_ball import LENGTH_SCALE_M, N_STATE
@@ -182,6 +181,9 @@ class EquilibriumSolver:
             ab[2, :-1] = sub
             col_u = z[rear, 2] - z[front, 2]
             rhs_f = cons - (y[rear, 2] - y[front, 2])
+            # Imported here: only the numpy path needs scipy.linalg (not on the node's
+            # start-up path, where its import cost 0.1 s).
+            from scipy.linalg import solve_banded
             pq = solve_banded((1, 1), ab, np.stack([rhs_f, col_u], axis=1))
             row_f = np.einsum("ij,ij->i", a_row[rear], wr) + np.einsum("ij,ij->i",
                                                                        a_row[front], wf)
