@@ -1,11 +1,12 @@
 """
 Controller side of the look-ahead feedforward: torque at a measured nut angle from profiles.
 
-``friction_node`` publishes, at every model step, a ``bb_friction_msgs/FeedforwardProfile``:
-the predicted friction torque at a row of nut angles from the angle of the step's input
-ahead in the direction of motion (see ``runner.look_ahead_profile``).  A controller keeps
-the newest profile and, in every cycle, reads the torque at its own measured angle: no
-round trip to the node, and the torque follows the balls' positions between model steps.
+``friction_node`` publishes, once per model period of motion (``runner.profile_due``), a
+``bb_friction_msgs/FeedforwardProfile``: the predicted friction torque at a row of nut
+angles from the angle of the step's input ahead in the direction of motion (see
+``runner.look_ahead_profile``).  A controller keeps the newest profile and, in every
+cycle, reads the torque at its own measured angle: no round trip to the node, and the
+torque follows the balls' positions between model steps.
 
 ``FeedforwardInterpolator`` is that controller side.  It imports nothing (not even numpy)
 and uses only arrays of doubles, comparisons and one division, so that it ports line by line

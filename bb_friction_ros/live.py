@@ -12,16 +12,18 @@ inputs come at the controller's rate) it is answered at once from the latest mod
 the caller's thread.  A sample that is due a step (or arrives while one is running) goes to
 the model thread, which steps the whole-screw model (a numba kernel that releases the GIL,
 so the input thread keeps taking inputs), answers it and everything queued behind it in
-order, and then steps a copy of the state ahead for the look-ahead profile.  Every sample
+order, and then, once per model period of motion (``runner.profile_due``), steps a copy of
+the state ahead for the look-ahead profile, giving way to the next due step.  Every sample
 reaches the runner in arrival order, so the answers equal replay's exactly (the runner is
 the same).
 
 Answer age is bounded: an answer older than ``max_answer_age_s`` since the input was
 received by the middleware is not published but counted (``shed_inputs``); its sample still
 goes through the runner, so the model is not disturbed.  When the model itself falls behind
-(its queue spans a model period), a step due on a queued sample is not taken
-(``process(allow_step=False)``: the runner counts it and turns its schedule coarser); the
-newest sample steps.  Answers then differ from replay's, and diagnostics say so.
+(a step now would leave another due at an input already waiting), a step due on a
+queued sample is not taken (``process(allow_step=False)``: the runner counts it and turns
+its schedule coarser); the newest sample steps.  Answers then differ from replay's, and
+diagnostics say so.
 
 Health (``status``), as diagnostic_updater's ``FrequencyStatus`` would judge it: ERROR when
 no nut_state arrived for ``input_timeout_s``; WARN when the model stepped less often than
@@ -37,7 +39,7 @@ import threading
 import time
 from typing import Callable
 
-from bb_friction_ros.runner import InputError, look_ahead_profile
+from bb_friction_ros.runner import InputError, look_ahead_profile, profile_due
 
 # Levels of diagnostic_msgs/DiagnosticStatus (bytes there; plain ints here, no ROS).
 OK, WARN, ERROR = 0, 1, 2
@@ -82,6 +84,7 @@ class LiveSchedule:
         self._queue = collections.deque(maxlen=params.queue_size)
         self._busy = False          # the model thread owns the runner until it clears this
         self._profile_seed = None
+        self._profiled = None       # the seed of the last profile published
         self._runner = runner
         self._assembler = assembler
         self._apply(params)
@@ -263,7 +266,7 @@ class LiveSchedule:
             pred = runner.process(sample, allow_step=not behind)
             if runner.stats.resets != resets:
                 self._reset_warning(runner.stats.resets, sample.stamp_s)
-            if pred is not None and pred.stepped:
+            if pred is not None and pred.stepped and profile_due(self._profiled, sample):
                 self._profile_seed = (runner.profile_seed(sample), stamp)
             self._finish(runner, pred, recv_ns, stamp, MODEL)
 
@@ -300,6 +303,7 @@ class LiveSchedule:
             return
         angles, torques, converged = out
         self.outputs.profile(seed.sample, stamp, angles, torques, converged)
+        self._profiled = seed
         with self._lock:
             self._profiles += 1
 

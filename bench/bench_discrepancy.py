@@ -326,6 +326,7 @@ def realdata_section(settings):
     import tempfile
     from pathlib import Path
     from bb_friction_ros.cli import main as cli_main
+    from bb_friction_ros.discrepancy.workflow import worse_than_reference
     epos = _importer()
     root, why = epos.find_realdata()
     print("\n== measured drives (RViMLab screw drives, MIT licence; Mablekos-Alexiou, da Cruz, "
@@ -365,7 +366,7 @@ def realdata_section(settings):
                                  "reference_relative_error"),
                                 ("validation", v, "relative_error_after",
                                  "reference_relative_error")):
-            verdict = "no worse" if row[a] <= row[b] else "WORSE"
+            verdict = "WORSE" if worse_than_reference(row[a], row[b]) else "no worse"
             print(f"  {what} ({row['n']} samples): relative error workflow {row[a]:.4f}, "
                   f"rigid-body reference {row[b]:.4f}: {verdict} "
                   f"({(row[a] / row[b] - 1) * 100:+.1f} %)")

@@ -101,6 +101,37 @@ def test_live_schedule_equals_replay():
     assert values["answered_inline"] > 0 and values["profiles"] == len(rec.profiles) > 0
 
 
+def test_one_profile_per_model_period_of_motion():
+    """
+    At 1 rev/s the 1.8 deg step falls due twice per model period (3.6 deg of motion): a
+    profile is started at every other step, and each one published lies a period of
+    motion (or a reversal) past the last.  Once at every step, the old rule, asked for
+    500-4000 profiles/s at 20 rev/s, each longer than the time between two steps.
+    """
+    import math
+    live, rec = schedule()
+    j = ("nut_joint",)
+    w = 2 * math.pi
+    try:
+        feed(live, [Event("axial_load", 0.0, value=1500.0)])
+        for k in range(300):    # 1 kHz, reversing after 150 ms
+            t = 1e-3 * k
+            angle, v = (w * t, w) if k < 150 else (w * (0.3 - t), -w)
+            feed(live, [Event("nut_state", t, j, (angle,), (v,))])
+            time.sleep(0.0005)  # leaves the model thread time for its profile
+    finally:
+        live.stop()
+    values = live.values()[0]
+    started = values["profiles"] + values["profiles_abandoned"]
+    assert values["model_steps"] >= 55       # 108 deg of motion in 1.8 deg steps
+    assert 0 < started <= values["model_steps"] // 2 + 2
+    assert values["profiles"] == len(rec.profiles) > 0
+    step = math.radians(NodeParameters().model_step_deg)
+    for (a, *_), (b, *_) in zip(rec.profiles, rec.profiles[1:]):
+        assert abs(b.nut_angle_rad - a.nut_angle_rad) >= 2 * step - 1e-9 \
+            or b.nut_velocity_rad_s != a.nut_velocity_rad_s
+
+
 def test_answers_older_than_the_limit_are_shed_and_counted():
     """A clock that says every answer is 1 s old: none published, every one counted."""
     events = short_recording()

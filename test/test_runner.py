@@ -356,6 +356,34 @@ def test_look_ahead_is_spaced_in_nut_angle_and_covers_the_schedule():
         assert [a - b for a, b in zip(angles, angles[1:])] == pytest.approx([span / 4] * 4)
 
 
+def test_look_ahead_steps_no_further_than_max_model_step_and_can_stop_between():
+    """
+    At 20 rev/s the 3 points of the default profile are 72 deg apart: the copy of the model
+    reaches them in 14.4 deg steps (max_model_step_deg), each with its share of the time, and
+    the live node's should_stop is asked before every one of them.
+    """
+    from bb_friction_ros.runner import look_ahead_profile
+    w = 2 * math.pi * 20
+    screw = RecordingScrew()
+    runner = ModelRunner(screw, 100.0, model_step_deg=1.8, max_model_step_deg=14.4)
+    s = InputSample(3.0, 0.5, w, 100.0)
+    runner.process(s)
+    n_before = len(screw.calls)
+    angles, torques, _ = look_ahead_profile(runner.profile_seed(s), 2.0, 3)
+    steps = screw.calls[n_before:]      # the copy shares the record (a shallow copy)
+    assert len(steps) == 10
+    walked = [b[1] - a[1] for a, b in zip([("step", 0.5, 0.0)] + steps, steps)]
+    assert walked == pytest.approx([math.radians(14.4)] * 10, rel=1e-9)
+    assert sum(c[2] for c in steps) == pytest.approx(2 * 0.01, rel=1e-9)
+    assert angles == [0.5, steps[4][1], steps[9][1]] == pytest.approx(
+        [0.5, 0.5 + 0.01 * w, 0.5 + 0.02 * w], rel=1e-12)
+    assert torques[1:] == [steps[4][1], steps[9][1]]    # RecordingScrew: torque = angle
+    asked = []
+    assert look_ahead_profile(runner.profile_seed(s), 2.0, 3,
+                              should_stop=lambda: asked.append(1) or len(asked) > 3) is None
+    assert len(screw.calls) - n_before - 10 == 3       # stopped after the third sub-step
+
+
 def test_replay_of_a_bag_with_stamps_at_zero_follows_the_load_and_warns(tmp_path):
     """Issue 23, finding 2 in replay: header.stamp 0 on every message (log times advance)."""
     from bb_friction_ros.bags import Event, write_events

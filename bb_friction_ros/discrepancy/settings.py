@@ -46,6 +46,11 @@ class DiscrepancySettings:
     bic_threshold: float = field(
         10.0, "1", "BIC decrease a term must bring to enter (and keep) the model: > 10 is "
         "'very strong' evidence (Kass & Raftery 1995)", lo=0.0)
+    rigid_body_bic_threshold: float = field(
+        0.0, "1", "BIC decrease each rigid-body term (inertia, viscous_drag, seal_drag, "
+        "offset) must bring when the recording has no model of the drive (--baseline zero): "
+        "there they are the textbook floor of every motor torque, not discoveries, so plain "
+        "BIC (0) decides; with a model they need bic_threshold like every term", lo=0.0)
     cv_folds: int = field(
         5, "1", "contiguous time blocks of the fit part for cross-validation: a term must "
         "also lower the cross-validated RMSE", lo=2, hi=50)

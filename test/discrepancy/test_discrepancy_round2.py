@@ -253,9 +253,12 @@ def test_cutoff_chosen_from_the_data_at_2_khz(tmp_path):
     acc = s["acceleration"]
     assert acc["chosen_by"].startswith("blocked cross-validation")
     assert len(acc["candidates"]) == SETTINGS.accel_cutoff_grid_points
+    # the one-standard-error rule, towards the highest cut-off (bandwidth.py)
+    lowest = min(c["cv_mse_nm2"] for c in acc["candidates"])
     assert acc["cutoff_hz"] == max(c["cutoff_hz"] for c in acc["candidates"]
-                                   if c["cv_mse_nm2"] == min(d["cv_mse_nm2"]
-                                                             for d in acc["candidates"]))
+                                   if c["cv_mse_nm2"] <= lowest + acc["one_se_nm2"])
+    assert all(c["within_one_se"] == (c["cv_mse_nm2"] <= lowest + acc["one_se_nm2"])
+               for c in acc["candidates"])
     assert acc["cutoff_hz"] <= SETTINGS.accel_max_cutoff_fraction * 2000.0 + 1e-9
     assert acc["live_lag_s"] == pytest.approx(filter_lag_s(acc["cutoff_hz"]))
     j = {e["name"]: e["params"] for e in s["effects"]}["inertia"]
@@ -379,3 +382,42 @@ def test_worse_than_the_reference_is_said_first(pair, tmp_path):
     assert s["warnings"][0].startswith("on the validation recording the workflow is WORSE")
     lines = (tmp_path / "o" / "report.md").read_text().splitlines()
     assert lines[2].startswith("**Warning:** on the validation recording the workflow is WORSE")
+
+
+def test_rigid_body_terms_need_only_plain_bic_without_a_model():
+    """
+    Issue 19 (driveNo2): a viscous drag whose BIC gain is positive but below bic_threshold is
+    left out when it would be a discovery (a model baseline), and kept when there is no model
+    of the drive (known=RIGID_BODY_TERMS, rigid_body_bic_threshold 0): there it is part of
+    the textbook floor, and leaving it out made the workflow validate worse than the
+    reference.  A non-rigid-body term (viscous_asymmetry) still needs bic_threshold.
+    """
+    from bb_friction_ros.discrepancy.selection import (candidates, fit, penalty,
+                                                       RIGID_BODY_TERMS, select)
+    from bb_friction_ros.empirical_terms import Inputs
+    rng = np.random.default_rng(7)
+    n = 2000
+    t = np.arange(n) * 0.01
+    w = np.tile(np.r_[np.full(100, 1.0), np.full(100, -3.0), np.full(100, 2.0),
+                      np.full(100, -1.5)], n // 400)
+    x = Inputs.of(t, np.cumsum(w) * 0.01, w, np.full(n, 1000.0))
+    noise = rng.normal(0.0, 1e-3, n)
+    cands = {c.name: c for c in candidates(x, SETTINGS)}
+    seal, visc = cands["seal_drag"], cands["viscous_drag"]
+    gains = {}
+    for c in np.geomspace(2e-5, 2e-4, 12):           # the viscous drag's BIC gain over seal
+        r = 0.02 * np.sign(w) + c * w + noise
+        gains[c] = fit([(seal, None)], x, r).bic - fit([(seal, None), (visc, None)], x, r).bic
+    c = next(c for c, g in gains.items() if 2.0 < g < SETTINGS.bic_threshold - 2.0)
+    r = 0.02 * np.sign(w) + c * w + noise
+    skip = ("stribeck", "thermal_drift", "load_dependent", "lead_error", "angle_ripple",
+            "stroke_position")
+    as_discovery = select(x, r, SETTINGS, skip=skip)[0].names
+    as_floor = select(x, r, SETTINGS, skip=skip, known=RIGID_BODY_TERMS)[0].names
+    assert "viscous_drag" not in as_discovery and "seal_drag" in as_discovery
+    assert "viscous_drag" in as_floor and "seal_drag" in as_floor
+    f = fit([(seal, None), (visc, None)], x, r)
+    assert penalty(f, SETTINGS) == 2 * SETTINGS.bic_threshold
+    assert penalty(f, SETTINGS, RIGID_BODY_TERMS) == 2 * SETTINGS.rigid_body_bic_threshold
+    asym = fit([(cands["viscous_asymmetry"], None)], x, r)
+    assert penalty(asym, SETTINGS, RIGID_BODY_TERMS) == SETTINGS.bic_threshold

@@ -34,7 +34,8 @@ from bb_friction_ros.discrepancy.data import load_recording
 from bb_friction_ros.discrepancy.bandwidth import with_acceleration
 from bb_friction_ros.discrepancy.reference import rigid_body_fit, rigid_body_relative_error
 from bb_friction_ros.discrepancy.settings import DiscrepancySettings
-from bb_friction_ros.discrepancy.workflow import usable
+from bb_friction_ros.discrepancy.workflow import (SAME_FIT_RTOL, usable,
+                                                  worse_than_reference)
 
 TOOLS = Path(__file__).resolve().parents[2] / "tools" / "import_epos.py"
 EXCERPT = Path(__file__).resolve().parent / "data" / "epos_driveNo3_steady_1rpm_excerpt.csv"
@@ -45,14 +46,6 @@ def _importer():
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
-
-
-# Where the workflow may trail the rigid-body reference on validation, and why: driveNo2's
-# viscous drag brings a BIC gain of 2.6 on the fit part, below the threshold of 10 that every
-# term must earn, so the workflow leaves it out; the rigid-body model always fits c and
-# validates 1.2 % better (0.1652 against 0.1671, 2026-11-25).  Not a tuned constant: the
-# measured gap, reported as not reached in docs/discrepancy.md and warned in the report.
-REFERENCE_SLACK = {"driveNo2": 1.02}
 
 
 def _with_alpha(rec, summary):
@@ -133,9 +126,9 @@ def test_measured_drive_named_and_validated(drives, drive):
     # no worse than the rigid-body least-squares reference, fitted in the same run on the
     # same samples with the same alpha (issue 19); and the reference is recomputed here
     ref = v["reference_relative_error"]
-    assert v["relative_error_after"] <= ref * REFERENCE_SLACK.get(drive, 1.0), \
-        (v["relative_error_after"], ref)
-    worse = v["relative_error_after"] > ref
+    # no slack: driveNo2 (the reference's own terms chosen) equals it up to rounding
+    assert v["relative_error_after"] <= ref * (1 + SAME_FIT_RTOL), (v["relative_error_after"], ref)
+    worse = worse_than_reference(v["relative_error_after"], ref)
     assert worse == any("WORSE than the rigid-body reference" in w for w in s["warnings"])
     fit = load_recording(res["fit"])
     own = rigid_body_relative_error(_rigid_body_on_all(fit, s), _with_alpha(
@@ -176,3 +169,38 @@ def test_lifting_and_lowering_differ_and_the_choice_is_explained(drives):
                           if float(r["mean_w_2ndhalf_rad_s"]) < 0)
     expected = (pos - neg) if e["name"] == "coulomb_asymmetry" else (pos - neg) / 2
     assert value == pytest.approx(expected, rel=0.3, abs=1e-4)
+
+
+@needs_realdata
+def test_driveno2_gets_the_rigid_body_floor_and_equals_the_reference(drives):
+    """
+    driveNo2: its viscous drag brings a BIC gain of ~2.6, below the threshold of 10 a
+    discovery needs; without a model of the drive the rigid-body terms need only plain BIC
+    (rigid_body_bic_threshold), so it is kept and the model written is the reference's own
+    (before: 0.1671 against 0.1652 on validation, held-out 0.138 against 0.136).
+    """
+    s = drives["driveNo2"]["summary"]
+    names = {e["name"] for e in s["effects"]}
+    assert {"viscous_drag", "seal_drag", "inertia"} <= names
+    h = s["heldout"]
+    assert h["relative_error_after"] <= h["reference_relative_error"] * (1 + SAME_FIT_RTOL)
+    assert not s["warnings"]
+
+
+@needs_realdata
+def test_driveno3_cutoff_is_the_highest_the_fit_recording_cannot_tell_apart(drives):
+    """
+    driveNo3's fit recording holds only a slow start-stop run: the lowest CV error is at
+    1.6 Hz, but every candidate up to the highest is within one standard error of it; the
+    highest is used, and the faster validation run is predicted better than by the
+    reference (at 1.6 Hz: 0.2045 against 0.226; the old fixed 10 Hz: 0.140 against 0.168).
+    """
+    acc = drives["driveNo3"]["summary"]["acceleration"]
+    best = min(acc["candidates"], key=lambda c: c["cv_mse_nm2"])
+    within = [c for c in acc["candidates"]
+              if c["cv_mse_nm2"] <= best["cv_mse_nm2"] + acc["one_se_nm2"]]
+    assert acc["cutoff_hz"] == max(c["cutoff_hz"] for c in within)
+    assert acc["lowest_score_cutoff_hz"] == best["cutoff_hz"] < acc["cutoff_hz"]
+    assert "within one standard error" in acc["statement"]
+    v = drives["driveNo3"]["summary"]["validation"]
+    assert v["relative_error_after"] < 0.9 * v["reference_relative_error"]
