@@ -38,7 +38,7 @@ from bb_friction_ros.node_parameters import (MODEL_PARAMETERS, NODE_NAME, node_p
 from bb_friction_ros.ros_inputs import InputTaker
 from bb_friction_ros.runner import build_runner, InputAssembler
 
-GIL_SWITCH_INTERVAL_S = 2.5e-4
+GIL_SWITCH_INTERVAL_S = NodeParameters().gil_switch_interval_s
 
 
 def _descriptor(f):
@@ -76,6 +76,7 @@ class FrictionNode(Node):
             except Exception as exc:   # rclpy raises several types for a bad override
                 raise ConfigError(f"{NODE_NAME}.{name}: {exc}") from exc
         p = node_parameters({name: self.get_parameter(name).value for name in PARAMETERS})
+        sys.setswitchinterval(p.gil_switch_interval_s)    # process-wide (parameter's doc)
         # rclpy keeps the overrides it was given (params file, -p) here; no public getter
         self.unknown_parameters = unknown_parameters(getattr(self, "_parameter_overrides", {}))
         for name in self.unknown_parameters:
@@ -241,6 +242,8 @@ class FrictionNode(Node):
         new, runner, changed = self._pending
         self._pending = None
         self.live.apply(new, runner)
+        if "gil_switch_interval_s" in changed:
+            sys.setswitchinterval(new.gil_switch_interval_s)
         if "groups_rate_hz" in changed:
             self._groups_timer.timer_period_ns = int(1e9 / new.groups_rate_hz)
 
@@ -256,9 +259,6 @@ class FrictionNode(Node):
 
 def main(args=None, on_spin=None):
     """Run friction_node (entered through ``node_entry.main``: console script and CLI)."""
-    # Python threads trade the GIL; at CPython's default 5 ms switch interval each handoff
-    # can wait up to 5 ms (measured: bench/bench_node.py).
-    sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)
     # A signal may come at any moment of start-up (loading numba and the friction maps takes
     # ~1 s): before rclpy.init its handlers do not exist, and after it they shut the context
     # down under a half-built node (RCLError "context is invalid").  The entry point

@@ -53,6 +53,11 @@ class NodeParameters:
                                            "periods of motion", lo=2.0, hi=20.0)
     profile_points: int = field(3, "1", "points of the look-ahead profile (the first is the "
                                 "step's own angle)", lo=2, hi=64)
+    gil_switch_interval_s: float = field(2.5e-4, "s", "how long a Python thread of the node "
+                                         "runs before another may take the interpreter "
+                                         "(sys.setswitchinterval; CPython's default 5 ms lets "
+                                         "the model thread hold an answer that long)",
+                                         lo=1e-5, hi=0.1)
 
     def __post_init__(self):
         """Refuse a wrong type or an out-of-range value, naming the parameter."""
@@ -74,7 +79,7 @@ class NodeParameters:
 RUNTIME = frozenset({"nut_joint", "model_rate_hz", "groups_rate_hz", "max_axial_load_n",
                      "config_file", "max_answer_age_s", "profile_horizon_periods",
                      "profile_points", "model_step_deg", "max_model_step_deg",
-                     "input_timeout_s", "model_rate_tolerance"})
+                     "input_timeout_s", "model_rate_tolerance", "gil_switch_interval_s"})
 MODEL_PARAMETERS = frozenset({"config_file", "model_rate_hz", "model_step_deg",
                               "max_model_step_deg"})
 FIELDS = {f.name: f for f in dataclasses.fields(NodeParameters)}

@@ -44,6 +44,10 @@ def _proc_rss_mb(pid):
     return float("nan")
 
 
+def _p99_ms(lat_s):
+    return float(np.percentile(lat_s, 99) * 1e3) if lat_s.size else float("nan")
+
+
 def drive(rate_hz, duration_s, pid, context, warmup_s=1.0, rev_s=1.0):
     """Send nut_state at ``rate_hz``: ``warmup_s`` unmeasured, then ``duration_s`` timed."""
     from bb_friction_msgs.msg import FeedforwardProfile, FrictionPrediction
@@ -59,6 +63,7 @@ def drive(rate_hz, duration_s, pid, context, warmup_s=1.0, rev_s=1.0):
     pub_load = node.create_publisher(WrenchStamped, interface.AXIAL_LOAD,
                                      qos_profile_sensor_data)
     sent, latency, diags, profiles = {}, [], [], []
+    stepped = []        # per answer: True if its model state was computed for it (age 0)
     lock = threading.Lock()
     measuring = [False]
 
@@ -69,6 +74,7 @@ def drive(rate_hz, duration_s, pid, context, warmup_s=1.0, rev_s=1.0):
             t0 = sent.pop(key, None)
             if t0 is not None and measuring[0]:
                 latency.append(t - t0)
+                stepped.append(msg.model_age_s == 0.0)
 
     def on_diag(msg):
         for st in msg.status:
@@ -152,6 +158,7 @@ def drive(rate_hz, duration_s, pid, context, warmup_s=1.0, rev_s=1.0):
     node.destroy_node()
     taker.destroy_node()
     lat = np.array(latency)
+    fresh = np.array(stepped, dtype=bool)
     diag, note = diags[-1] if diags else ({}, "")
     prof_t = np.array([p[0] for p in profiles])
     return {
@@ -159,6 +166,10 @@ def drive(rate_hz, duration_s, pid, context, warmup_s=1.0, rev_s=1.0):
         "answered_share": lat.size / n,
         "p50_ms": float(np.percentile(lat, 50) * 1e3) if lat.size else float("nan"),
         "p99_ms": float(np.percentile(lat, 99) * 1e3) if lat.size else float("nan"),
+        # where the tail comes from: answers that waited for their own model step (age 0;
+        # the thin node's answers all have age 0) and answers from a held state
+        "p99_stepped_ms": _p99_ms(lat[fresh]), "p99_held_ms": _p99_ms(lat[~fresh]),
+        "stepped_share": float(fresh.mean()) if fresh.size else float("nan"),
         "cpu_share": (cpu1 - cpu0) / (wall + 1.5),
         "cpu_us_per_input": 1e6 * (cpu1 - cpu0) / n,
         "rss_mb": (rss0, rss1),
@@ -220,7 +231,10 @@ def main():
                 d = r["diagnostics"]
                 extra = ""
                 if kind == "friction":
-                    extra = (f" | profiles {r['profiles_per_s']:.0f}/s x "
+                    extra = (f" | p99 stepped {r['p99_stepped_ms']:.2f} ms "
+                             f"({100 * r['stepped_share']:.0f} %), held "
+                             f"{r['p99_held_ms']:.2f} ms"
+                             f" | profiles {r['profiles_per_s']:.0f}/s x "
                              f"{r['profile_points']} points | node: shed "
                              f"{d.get('shed_inputs', '?')}, skipped steps "
                              f"{d.get('skipped_steps', '?')}, dropped "

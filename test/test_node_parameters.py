@@ -33,6 +33,9 @@ BAD_VALUES = [   # issue 13 finding 23: replay accepted the first two, and "fast
     ("model_step_deg", 3, "model_step_deg: expected a double"),
     ("model_step_deg", 40.0, "max_model_step_deg: must be >= model_step_deg = 40 deg"),
     ("max_model_step_deg", 1.0, "max_model_step_deg: must be >= model_step_deg"),
+    # issue 22, item 6: the GIL switch interval (sys.setswitchinterval refuses <= 0 itself)
+    ("gil_switch_interval_s", 0.0, "gil_switch_interval_s: must be >= 1e-05 s"),
+    ("gil_switch_interval_s", 1, "gil_switch_interval_s: expected a double"),
 ]
 
 

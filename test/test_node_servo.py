@@ -318,6 +318,28 @@ def test_empty_nut_joint_is_refused(ros_context):
         node.destroy_node()
 
 
+def test_gil_switch_interval_is_the_nodes_parameter(ros_context):
+    """Issue 22, item 6: the node sets the interpreter's switch interval from its parameter,
+    at start and at runtime (the process-wide setting is restored afterwards)."""
+    import sys
+    before = sys.getswitchinterval()
+    try:
+        node = FrictionNode(context=ros_context, parameter_overrides=[
+            Parameter("gil_switch_interval_s", value=1e-3)])
+        try:
+            assert sys.getswitchinterval() == pytest.approx(1e-3)
+            assert node.set_parameters([Parameter("gil_switch_interval_s",
+                                                  value=5e-5)])[0].successful
+            assert sys.getswitchinterval() == pytest.approx(5e-5)
+            res = node.set_parameters([Parameter("gil_switch_interval_s", value=0.0)])[0]
+            assert not res.successful and "gil_switch_interval_s" in res.reason
+            assert sys.getswitchinterval() == pytest.approx(5e-5)
+        finally:
+            node.destroy_node()
+    finally:
+        sys.setswitchinterval(before)
+
+
 def test_unknown_parameter_in_params_file_is_warned(tmp_path):
     """Finding 5: a misspelt key in a params file is named (log and diagnostics)."""
     import rclpy
