@@ -36,7 +36,8 @@ from bb_friction_ros.bags import (BagError, BagInput, BagWriter, friction_typest
                                   MeasuredAligner, stamp_ns, Topics)
 from bb_friction_ros.config import bundled_config
 from bb_friction_ros.node_parameters import NodeParameters
-from bb_friction_ros.runner import build_runner, InputAssembler, InputError
+from bb_friction_ros.runner import build_runner, InputAssembler, InputError, \
+    InputSample
 
 CSV_COLUMNS = ["t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n", "torque_pred_nm",
                "torque_b2b_nm"]
@@ -271,13 +272,6 @@ class _OutputBag:
         self.bag.close()
 
 
-def _row(pred, empirical):
-    row = [f"{pred.stamp_s:.9f}", repr(pred.nut_angle_rad), repr(pred.nut_velocity_rad_s),
-           repr(pred.axial_load_n), repr(pred.torque_total_nm), repr(pred.torque_b2b_nm)]
-    return row, ([repr(pred.torque_empirical_nm)] if empirical else []) + \
-        [str(int(bool(pred.converged)))]
-
-
 def csv_header(measured, empirical):
     """
     Return the prediction.csv columns.
@@ -399,6 +393,25 @@ def _remove_earlier_outputs(bag, out):
         (out / BAG_DIR).unlink()
 
 
+def _row_formats(measured, empirical):
+    """
+    Return the %-formats of a prediction.csv line: (before, after) the measured column.
+
+    Byte for byte what csv.writer wrote (floats as repr, which never need quoting, the stamp
+    with 9 decimals, CRLF): one %-format per row instead of six repr calls and a writerow.
+    """
+    head = "%.9f,%r,%r,%r,%r,%r"
+    tail = (",%r" if empirical else "") + ",%d\r\n"
+    return head + (",%r" if measured else "") + tail
+
+
+def csv_values(pred, empirical):
+    """Return the prediction.csv values of ``pred`` but the measurement (``_row_formats``)."""
+    return (pred.stamp_s, pred.nut_angle_rad, pred.nut_velocity_rad_s, pred.axial_load_n,
+            pred.torque_total_nm, pred.torque_b2b_nm) + \
+        ((pred.torque_empirical_nm,) if empirical else ()) + (int(bool(pred.converged)),)
+
+
 def _stream(src, runner, assembler, out, measured, empirical, outbag, progress,
             interrupted=()):
     series = _Series(measured)
@@ -410,48 +423,82 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress,
         from tqdm import tqdm
         bar = tqdm(total=src.total_messages(), desc="replay", unit="msg", file=sys.stderr,
                    mininterval=0.5)
-    t0 = time.perf_counter()
+    line = _row_formats(measured, empirical)
+    lines = []
+    clock = time.perf_counter
+    t0 = clock()
     with open(out / "prediction.csv", "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(csv_header(measured, empirical))
+        csv.writer(fh).writerow(csv_header(measured, empirical))
 
         def emit(done):
             nonlocal sq_err, n_err
-            for (head, tail, pred_nm, row), meas in done:
-                w.writerow(head + [repr(float(meas))] + tail)
+            for (values, row), meas in done:
+                meas = float(meas)
+                lines.append(line % (values[:6] + (meas,) + values[6:]))
                 series.measure(row, meas)
                 if math.isfinite(meas):
-                    sq_err += (meas - pred_nm) ** 2
+                    sq_err += (meas - values[4]) ** 2
                     n_err += 1
 
-        for conn, log_ns, raw, ev in src.messages(all_topics=outbag is not None):
+        def answered(pred, stamp_ns_, t_in):
+            if outbag is not None:
+                outbag.publish(pred, stamp_ns_, clock() - t_in)
+            row = series.add(pred)
+            values = csv_values(pred, empirical)
+            if aligner is None:
+                lines.append(line % values)
+            else:
+                emit(aligner.add_prediction(pred.stamp_s, (values, row)))
+
+        for block in src.blocks(assembler.nut_joint, all_topics=outbag is not None):
             if interrupted:
                 raise KeyboardInterrupt
             if bar is not None:
-                bar.update()
-            if outbag is not None:
-                outbag.copy(conn, log_ns, raw)
-            if ev is None:
-                continue
-            log_min, log_max = min(log_min, log_ns), max(log_max, log_ns)
-            if ev.kind == "measured_torque":
-                emit(aligner.add_measured(ev.stamp_s, ev.value))
-                continue
-            t_in = time.perf_counter()
-            pred = feed_event(ev, runner, assembler)
-            if pred is None:
-                continue
-            if outbag is not None:
-                outbag.publish(pred, stamp_ns(ev), time.perf_counter() - t_in)
-            row = series.add(pred)
-            head, tail = _row(pred, empirical)
-            if aligner is None:
-                w.writerow(head + tail)
-            else:
-                emit(aligner.add_prediction(pred.stamp_s,
-                                            (head, tail, pred.torque_total_nm, row)))
+                bar.update(len(block.items))
+            items, kinds = block.items, block.kinds
+            fast = block.fast.tolist()
+            stamps, stamps_ns = block.stamp_s.tolist(), block.stamp_ns.tolist()
+            values, velocities = block.value.tolist(), block.velocity.tolist()
+            for i, kind in enumerate(kinds):
+                if outbag is not None:
+                    outbag.copy(*items[i])
+                if kind is None:
+                    continue
+                log_ns = items[i][1]
+                log_min, log_max = min(log_min, log_ns), max(log_max, log_ns)
+                if fast[i]:
+                    # decoded with numpy (bags.Block): the node's own checks, inline
+                    if kind == "measured_torque":
+                        if aligner is not None:
+                            emit(aligner.add_measured(stamps[i], values[i]))
+                        continue
+                    if kind == "axial_load":
+                        try:
+                            assembler.on_axial_load(values[i])
+                        except InputError as err:
+                            runner.reject(err.reason)
+                        continue
+                    if assembler.load_n is not None:
+                        t_in = clock()
+                        pred = runner.process(InputSample(
+                            stamps[i], values[i], velocities[i], assembler.load_n))
+                        if pred is not None:
+                            answered(pred, stamps_ns[i], t_in)
+                        continue
+                ev = block.event(i)       # decoded one by one; rejected with its reason
+                if ev.kind == "measured_torque":
+                    if aligner is not None:
+                        emit(aligner.add_measured(ev.stamp_s, ev.value))
+                    continue
+                t_in = clock()
+                pred = feed_event(ev, runner, assembler)
+                if pred is not None:
+                    answered(pred, stamp_ns(ev), t_in)
+            fh.write("".join(lines))
+            lines.clear()
         if aligner is not None:
             emit(aligner.finish())
+        fh.write("".join(lines))
     wall = time.perf_counter() - t0
     if bar is not None:
         bar.close()

@@ -288,3 +288,99 @@ def test_batched_writes_are_the_bag_rosbags_writes_message_by_message(tmp_path, 
     with Reader(tmp_path / "batched" / "bag") as reader:
         got = sorted((ts, conn.topic, bytes(raw)) for conn, ts, raw in reader.messages())
     assert got == sorted((ts, topics[k][0], raw) for k, ts, raw in messages)
+
+
+@pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
+def test_blocks_decode_what_messages_decodes(tmp_path, storage):
+    """
+    BagInput.blocks (replay, issue 20) decodes messages sharing a layout with numpy: every
+    value equals messages()' Event, and anything else (another frame_id or joint list, a
+    missing velocity, NaN, big-endian, another joint) is left to Block.event, which gives
+    messages()' Event; counts and joint names agree; block boundaries change nothing.
+    """
+    import math as m
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from bb_friction_ros.bags import _typestore, BagInput, Topics
+    store = _typestore()
+    t = store.types
+    rng = np.random.default_rng(11)
+
+    def wrench(sec, nanosec, frame_id, fz, tz, fx):
+        vec = t["geometry_msgs/msg/Vector3"]
+        msg = t["geometry_msgs/msg/WrenchStamped"](
+            header=t["std_msgs/msg/Header"](stamp=t["builtin_interfaces/msg/Time"](
+                sec=sec, nanosec=nanosec), frame_id=frame_id),
+            wrench=t["geometry_msgs/msg/Wrench"](force=vec(x=fx, y=0.0, z=fz),
+                                                 torque=vec(x=0.0, y=fx, z=tz)))
+        return bytes(store.serialize_cdr(msg, "geometry_msgs/msg/WrenchStamped"))
+
+    joints = [(("nut_joint",), 1, 1, 0, ""), (("nut_joint",), 1, 1, 0, "base"),
+              (("nut_joint",), 1, 1, 0, "odd!"), (("a", "nut_joint"), 2, 2, 2, ""),
+              (("nut_joint",), 1, 0, 0, ""), (("other",), 1, 1, 0, "")]
+    messages, regular = [], 0
+    for k in range(700):
+        sec, nanosec = int(rng.integers(-5, 2**31 - 1)), int(rng.integers(0, 10**9))
+        r = rng.random()
+        if r < 0.6:
+            names, n_pos, n_vel, n_eff, frame = joints[0] if r < 0.4 else \
+                joints[int(rng.integers(1, len(joints)))]
+            pos, vel = rng.normal(size=n_pos), rng.normal(size=n_vel)
+            if rng.random() < 0.05:
+                pos[-1] = math.nan
+            regular += r < 0.4 and m.isfinite(pos[-1])
+            raw = _joint_state_cdr(store, names, pos, vel, rng.normal(size=n_eff), frame,
+                                   sec=sec, nanosec=nanosec,
+                                   little_endian=rng.random() > 0.03)
+            messages.append(("/nut_state", "sensor_msgs/msg/JointState", raw))
+        elif r < 0.8:
+            raw = wrench(sec, nanosec, "load" if rng.random() < 0.9 else "", rng.normal(),
+                         rng.normal(), rng.normal())
+            messages.append(("/axial_load", "geometry_msgs/msg/WrenchStamped", raw))
+        elif r < 0.95:
+            raw = wrench(sec, nanosec, "", rng.normal(), rng.normal(), rng.normal())
+            messages.append(("/measured_torque", "geometry_msgs/msg/WrenchStamped", raw))
+        else:
+            msg = t["std_msgs/msg/String"](data="x" * int(rng.integers(0, 9)))
+            messages.append(("/other", "std_msgs/msg/String",
+                             bytes(store.serialize_cdr(msg, "std_msgs/msg/String"))))
+    plugin = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}[storage]
+    with Writer(tmp_path / "bag", version=9, storage_plugin=plugin) as writer:
+        conns = {}
+        for k, (topic, msgtype, raw) in enumerate(messages):
+            if topic not in conns:
+                conns[topic] = writer.add_connection(topic, msgtype, typestore=store)
+            writer.write(conns[topic], 1000 + k, raw)
+
+    def key(ev):        # NaN-safe, exact
+        return repr((ev.kind, ev.stamp_s, ev.stamp_ns, ev.names, ev.positions, ev.velocities,
+                     ev.value))
+
+    with BagInput(tmp_path / "bag", Topics()) as src:
+        want = list(src.messages())
+        want_counts, want_names = dict(src.counts), dict(src.joint_names)
+    for size in (7, None):
+        with BagInput(tmp_path / "bag", Topics()) as src:
+            got, fast = [], 0
+            for block in src.blocks("nut_joint", size=size):
+                stamp_s, stamp_ns = block.stamp_s.tolist(), block.stamp_ns.tolist()
+                for i, item in enumerate(block.items):
+                    ev = want[len(got)][3]
+                    got.append(item)
+                    if block.kinds[i] is None:
+                        assert ev is None
+                    elif block.fast[i]:
+                        fast += 1
+                        assert (stamp_s[i], stamp_ns[i]) == (ev.stamp_s, ev.stamp_ns)
+                        if ev.kind == "nut_state":
+                            j = ev.names.index("nut_joint")
+                            assert (block.value[i], block.velocity[i]) == \
+                                (ev.positions[j], ev.velocities[j])
+                        else:
+                            assert block.value[i] == ev.value
+                    else:
+                        assert key(block.event(i)) == key(ev)
+            assert [(c.topic, ts, bytes(raw)) for c, ts, raw in got] == \
+                [(c.topic, ts, bytes(raw)) for c, ts, raw, _ in want]
+            assert dict(src.counts) == want_counts and dict(src.joint_names) == want_names
+            # every regular nut_state, and most loads and torques, read with numpy
+            assert fast >= regular + 0.3 * len(messages), (fast, regular)

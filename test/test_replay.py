@@ -238,14 +238,39 @@ def test_replay_no_bag_writes_only_csv_summary_and_plots(tmp_path):
 
 def test_replay_prints_nonconverged_steps_and_converged_column(tmp_path, capsys):
     """Issue 13 finding 2 (output half): non-convergence is visible in the CSV and summary."""
-    from bb_friction_ros.replay import _row
+    from bb_friction_ros.replay import _row_formats, csv_values
     from bb_friction_ros.runner import Prediction
     _, code = _replay_short(tmp_path, extra=("--no-bag",))
     printed = json.loads(capsys.readouterr().out.splitlines()[0])
     assert code == 0 and printed["nonconverged_steps"] == 0
     bad = Prediction(0.0, 0.0, 6.0, 2e4, -58.0, 0.0, 0.0, 0.0, False, 0.0, (), 37, True)
-    head, tail = _row(bad, empirical=False)
-    assert tail == ["0"]
+    assert (_row_formats(False, False) % csv_values(bad, False)).endswith(",0\r\n")
+
+
+def test_csv_lines_are_what_csv_writer_writes():
+    """replay formats its rows with one %-format: byte for byte csv.writer's lines."""
+    import io
+    from bb_friction_ros.replay import _row_formats
+    rng = np.random.default_rng(2)
+    odd = [math.nan, math.inf, -math.inf, -0.0, 0.0, 1e-300, 5e-324, 1.7e308, 1e16, 0.1]
+    for measured in (False, True):
+        for empirical in (False, True):
+            fh = io.StringIO()
+            w = csv.writer(fh)
+            lines = []
+            for k in range(300):
+                v = [float(x) for x in rng.normal(0.0, 10.0 ** rng.integers(-8, 12), 8)]
+                v[k % 8] = odd[k % len(odd)]
+                stamp = float(rng.uniform(0.0, 2e9)) if k % 5 else v[0]
+                head = [f"{stamp:.9f}"] + [repr(x) for x in v[1:6]]
+                meas = [repr(v[6])] if measured else []
+                tail = ([repr(v[7])] if empirical else []) + [str(k % 2)]
+                w.writerow(head + meas + tail)
+                values = (stamp, *v[1:6]) + ((v[7],) if empirical else ()) + (k % 2,)
+                if measured:
+                    values = values[:6] + (v[6],) + values[6:]
+                lines.append(_row_formats(measured, empirical) % values)
+            assert "".join(lines) == fh.getvalue()
 
 
 # --- bad input: nothing accepted, missing or wrong topics, namespaces ----------------------
@@ -434,6 +459,7 @@ def test_replay_streams_in_bounded_memory(tmp_path, monkeypatch):
     temporary file.  bench/bench_replay.py measures the process's peak RSS on that bag.
     """
     import gc
+    from bb_friction_ros import bags
     from bb_friction_ros.bags import BagInput
     from bb_friction_ros.replay import replay, _Series
     from bb_friction_ros.runner import Prediction
@@ -444,7 +470,7 @@ def test_replay_streams_in_bounded_memory(tmp_path, monkeypatch):
     write_events(tmp_path / "bag", with_measurement(events, [0.2] * n), storage="mcap")
     del events
     alive = {}
-    messages = BagInput.messages
+    blocks = BagInput.blocks
 
     def count(kind):     # other tests' parameters hold a few Events too
         gc.collect()
@@ -453,16 +479,20 @@ def test_replay_streams_in_bounded_memory(tmp_path, monkeypatch):
     before = {"events": count(Event), "predictions": count(Prediction)}
 
     def counting(self, *args, **kwargs):
-        for k, item in enumerate(messages(self, *args, **kwargs)):
-            if k == 2 * n - 10:              # nut_state and measured_torque: near the end
+        read = 0
+        for block in blocks(self, *args, **kwargs):
+            read += len(block.items)
+            if read >= 2 * n - 10 and not alive:   # nut_state and measured_torque: the end
                 alive["events"] = count(Event) - before["events"]
                 alive["predictions"] = count(Prediction) - before["predictions"]
                 alive["series_rows_in_memory"] = sum(
                     len(o._buf) // len(o.COLUMNS) for o in gc.get_objects()
                     if isinstance(o, _Series))
-            yield item
+            yield block
 
-    monkeypatch.setattr(BagInput, "messages", counting)
+    # blocks of messages are read at once: small ones, so that many are behind at the end
+    monkeypatch.setattr(bags, "READ_BLOCK", 100)
+    monkeypatch.setattr(BagInput, "blocks", counting)
     summary = replay(tmp_path / "bag", tmp_path / "out", progress=False)
     assert summary["samples"] == n and alive, alive
     assert alive["events"] < 20 and alive["predictions"] < 20, alive

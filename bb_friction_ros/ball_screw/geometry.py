@@ -21,8 +21,8 @@ References
 import math
 
 import numpy as np
-from scipy.optimize import brentq
 
+from bb_friction_ros.contact.friction_maps import cached_arrays
 from bb_friction_ros.contact.hertz import HertzContact, effective_modulus
 
 CONTACTS = ("SL", "SR", "NR", "NL")
@@ -73,10 +73,18 @@ def b2b_contact_separation(ball_radius_m, lead_m, pitch_radius_m):
         return math.hypot(2.0 * pitch_radius_m * math.sin(0.5 * dphi), r_g * dphi) \
             - 2.0 * ball_radius_m
 
-    hi = 2.0 * b2b_contact_angle(ball_radius_m, lead_m, pitch_radius_m)
-    while chord_minus_diameter(hi) < 0.0:
-        hi *= 1.5
-    return brentq(chord_minus_diameter, 1e-12, hi, xtol=1e-15, rtol=1e-15)
+    def build():
+        # scipy only when the table cache misses: its import is most of the node's
+        # start-up import time (``hertz._ellipse`` says why).
+        from scipy.optimize import brentq
+        hi = 2.0 * b2b_contact_angle(ball_radius_m, lead_m, pitch_radius_m)
+        while chord_minus_diameter(hi) < 0.0:
+            hi *= 1.5
+        return {"separation": np.array(
+            brentq(chord_minus_diameter, 1e-12, hi, xtol=1e-15, rtol=1e-15))}
+
+    key = (float(ball_radius_m), float(lead_m), float(pitch_radius_m))
+    return float(cached_arrays("b2b-separation", key, build)["separation"])
 
 
 def b2b_chord_frames(separation_rad, pitch_radius_m, lead_m):

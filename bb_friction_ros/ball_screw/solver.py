@@ -40,7 +40,6 @@ References
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg import solve_banded
 
 from bb_friction_ros.ball_screw import kernel
 from bb_friction_ros.ball_screw.single_ball import LENGTH_SCALE_M, N_STATE
@@ -115,8 +114,9 @@ class EquilibriumSolver:
         self._solve_active_kernel(x, 0.0, np.zeros(1), centres, 1.0, 1.0, 1.0, *pair, 0)
         st = self.settings
         none = np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0)
-        kernel.warm_solve(x, np.zeros(1), x, np.zeros(1), np.zeros(2), 0.0, np.zeros(2),
-                          np.zeros(2, dtype=bool), 0.0, np.zeros(1, dtype=np.int64), centres, 1.0,
+        kernel.warm_solve(x, np.zeros(1), x, np.zeros(1), np.zeros(2), 0.0, x, np.zeros(1),
+                          np.zeros(2), 0.0, np.zeros(2), np.zeros(2, dtype=bool), 0.0,
+                          np.zeros(1, dtype=np.int64), centres, 1.0,
                           *self.kernel_constants(), 1.0, 1.0, *pair, *self.b2b.linear_terms(1.0),
                           *none, float(st.tolerance), 0, float(st.max_step_rate), 1.0, 1, -1)
         kernel.ring_projection(np.array([0.0, 0.5]), 1.0, 10.0)
@@ -182,6 +182,9 @@ class EquilibriumSolver:
             ab[2, :-1] = sub
             col_u = z[rear, 2] - z[front, 2]
             rhs_f = cons - (y[rear, 2] - y[front, 2])
+            # Imported here: only the numpy path needs scipy.linalg (not on the node's
+            # start-up path, where its import cost 0.1 s).
+            from scipy.linalg import solve_banded
             pq = solve_banded((1, 1), ab, np.stack([rhs_f, col_u], axis=1))
             row_f = np.einsum("ij,ij->i", a_row[rear], wr) + np.einsum("ij,ij->i",
                                                                        a_row[front], wf)

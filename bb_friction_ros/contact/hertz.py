@@ -20,8 +20,8 @@ from dataclasses import dataclass
 import math
 
 import numpy as np
-from scipy.optimize import brentq
-from scipy.special import ellipe, ellipk
+
+from bb_friction_ros.contact.friction_maps import cached_arrays
 
 
 def effective_modulus(youngs_modulus_pa, poisson_ratio):
@@ -40,15 +40,32 @@ def ellipticity_from_curvatures(curv_a_per_m, curv_b_per_m):
         raise ValueError(
             f"relative curvatures must satisfy 0 < curv_a <= curv_b, got {curv_a_per_m}, "
             f"{curv_b_per_m} (is the groove radius larger than the ball radius?)")
-    ratio = curv_b_per_m / curv_a_per_m
-    if ratio - 1.0 < 1e-12:
-        return 1.0
+    return _ellipse(curv_b_per_m / curv_a_per_m)[0]
 
-    def residual(k):
+
+def _ellipse(ratio):
+    """
+    (k, E(e), K(e)) of the Hertz ellipse for the curvature ratio B/A >= 1.
+
+    Kept in the table cache (``friction_maps.cached_arrays``): computed with scipy once,
+    then read back bit for bit; importing scipy.optimize and scipy.special cost 0.26 s of
+    the node's start-up (issue 22), more than everything else the core imports.
+    """
+    def build():
+        from scipy.optimize import brentq
+        from scipy.special import ellipe, ellipk
+
+        def residual(k):
+            m = 1.0 - k * k
+            return (ellipe(m) / k ** 2 - ellipk(m)) / (ellipk(m) - ellipe(m)) - ratio
+
+        k = 1.0 if ratio - 1.0 < 1e-12 else \
+            brentq(residual, 1e-6, 1.0 - 1e-12, xtol=1e-15, rtol=1e-15)
         m = 1.0 - k * k
-        return (ellipe(m) / k ** 2 - ellipk(m)) / (ellipk(m) - ellipe(m)) - ratio
+        return {"k_e_k": np.array([k, float(ellipe(m)), float(ellipk(m))])}
 
-    return brentq(residual, 1e-6, 1.0 - 1e-12, xtol=1e-15, rtol=1e-15)
+    k, big_e, big_k = cached_arrays("hertz-ellipse", (float(ratio),), build)["k_e_k"].tolist()
+    return k, big_e, big_k
 
 
 @dataclass(frozen=True)
@@ -67,9 +84,8 @@ class HertzContact:
     @classmethod
     def from_curvatures(cls, curv_a_per_m, curv_b_per_m, e_star_pa):
         """Build from relative curvatures (sum of both bodies, 1/m) and contact modulus E*."""
-        k = ellipticity_from_curvatures(curv_a_per_m, curv_b_per_m)
-        m = 1.0 - k * k
-        big_e, big_k = float(ellipe(m)), float(ellipk(m))
+        ellipticity_from_curvatures(curv_a_per_m, curv_b_per_m)     # checks the curvatures
+        k, big_e, big_k = _ellipse(curv_b_per_m / curv_a_per_m)
         a_plus_b = 0.5 * (curv_a_per_m + curv_b_per_m)
         # Q = (2/3) pi a b p0 and p0 = E* b (A+B) / E(e)  =>  a^3 = 3 Q E(e) / (2 pi k^2 E* (A+B))
         coef_a = (3.0 * big_e / (2.0 * math.pi * k * k * e_star_pa * a_plus_b)) ** (1.0 / 3.0)

@@ -56,3 +56,34 @@ def test_groove_wider_than_ball_refused():
     """A groove tighter than the ball has no Hertz solution: refused, not a silent number."""
     with pytest.raises(ValueError, match="curv"):
         HertzContact.ball_in_straight_groove(5e-3, 0.45, 210e9, 0.28)
+
+
+def _scipy_ellipse(ratio):
+    """k, E(e), K(e) computed directly with scipy (as hertz did before the table cache)."""
+    from scipy.optimize import brentq
+    from scipy.special import ellipe, ellipk
+
+    def residual(k):
+        m = 1.0 - k * k
+        return (ellipe(m) / k ** 2 - ellipk(m)) / (ellipk(m) - ellipe(m)) - ratio
+
+    k = brentq(residual, 1e-6, 1.0 - 1e-12, xtol=1e-15, rtol=1e-15)
+    return k, float(ellipe(1.0 - k * k)), float(ellipk(1.0 - k * k))
+
+
+@pytest.mark.parametrize("conformity", [0.52, 0.56, 0.6])
+def test_cached_ellipse_constants_are_scipys_bit_for_bit(conformity, tmp_path, monkeypatch):
+    """
+    The Hertz constants come from the table cache (scipy stays off the node's start-up):
+    built in an empty cache and read back from disk, they are scipy's values exactly.
+    """
+    from bb_friction_ros.contact import friction_maps as fm
+    from bb_friction_ros.contact import hertz
+    monkeypatch.setenv("BB_FRICTION_CACHE", str(tmp_path))
+    r_b = TABLE1["ball_radius_m"]
+    ratio = (1.0 / r_b) / (1.0 / r_b - 1.0 / (2 * conformity * r_b))
+    want = _scipy_ellipse(ratio)
+    for _ in range(2):              # built, then from disk
+        monkeypatch.setattr(fm, "_IN_PROCESS", {})
+        assert hertz._ellipse(ratio) == want
+    assert len(list(tmp_path.glob("hertz-ellipse-*.npz"))) == 1
