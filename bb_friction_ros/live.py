@@ -6,28 +6,32 @@ The live schedule of ``friction_node``, without ROS: who answers an input, and w
 (``Outputs``).  Everything between is here, so it is tested without DDS
 (``test/test_live.py``).
 
-Per-input path, all in the caller's (input) thread: a nut-state sample is validated
-(``runner.InputAssembler``) and handed to the runner, which steps the whole-screw model if a
-step is due (every ``model_step_deg`` of nut rotation, at a reversal, at the time floor) and
-answers it from the latest state; the answer is published at once.  No thread hand-off
-stands between an input and its answer: a hand-off to a model thread cost a scheduler
-wake-up per step (measured in-process at 1 rev/s, load 8: p99 of the stepped answers 12-22
-ms through the model thread against 0.8 ms stepped in place).  Every sample reaches the
+Per-input path: a nut-state sample is validated (``runner.InputAssembler``) and reaches the
 runner in arrival order, so the answers equal replay's exactly (the runner is the same).
+Who steps and answers:
 
-The model thread only computes the look-ahead profile: once per model period of motion
-(``runner.profile_due``) it steps a copy of the state ahead, and gives way (abandons it,
-counted) whenever the input thread steps the model.
+- no step due (most inputs at low speed: the model steps every ``model_step_deg`` of nut
+  rotation, the inputs come at the controller's rate): answered at once from the latest
+  model state, in the caller's (input) thread;
+- a step due, the model thread idle and no other input waiting (``more_waiting`` False:
+  the input thread's batch held nothing after it): stepped and answered in the caller's
+  thread too.
+  A hand-off to the model thread costs a scheduler wake-up: measured in-process at 1 rev/s,
+  load 8-8.8, the p99 from input to answer was 8.5-22.9 ms through the model thread and
+  0.87-0.91 ms stepped in the caller's thread (docs/model_schedule.md);
+- a step due while other inputs wait, or any input while the model thread works: queued
+  for the model thread, which steps, answers it and everything queued behind it in order.
+
+After a step, once per model period of motion (``runner.profile_due``), the model thread
+steps a copy of the state ahead for the look-ahead profile, giving way to the next step.
 
 Answer age is bounded: an answer older than ``max_answer_age_s`` since the input was
 received by the middleware is not published but counted (``shed_inputs``); its sample still
-goes through the runner, so the model is not disturbed.  When the model falls behind the
-inputs (a step now would leave another due at the newest input already received, which the
-input thread hands in as ``newest``), a step due on the sample is not taken
-(``process(allow_step=False)``: the runner counts it and turns its schedule coarser); the
-newest sample steps.  Answers then differ from replay's, and diagnostics say so.  Inputs
-waiting while the input thread steps stay in the middleware's queue (``queue_size`` deep,
-the oldest dropped when full).
+goes through the runner, so the model is not disturbed.  When the model itself falls behind
+(a step now would leave another due at an input already waiting in its queue), a step due
+on a queued sample is not taken (``process(allow_step=False)``: the runner counts it and
+turns its schedule coarser); the newest sample steps.  Answers then differ from replay's,
+and diagnostics say so.
 
 Health (``status``), as diagnostic_updater's ``FrequencyStatus`` would judge it: ERROR when
 no nut_state arrived for ``input_timeout_s``; WARN when the model stepped less often than
@@ -43,13 +47,14 @@ import threading
 import time
 from typing import Callable
 
-from bb_friction_ros.runner import (InputError, InputSample, joint_state_sample,
-                                    look_ahead_profile, profile_due)
+from bb_friction_ros.runner import InputError, look_ahead_profile, profile_due
 
 # Levels of diagnostic_msgs/DiagnosticStatus (bytes there; plain ints here, no ROS).
 OK, WARN, ERROR = 0, 1, 2
 LEVEL_NAMES = {OK: "OK", WARN: "WARN", ERROR: "ERROR"}
-# How long the model thread waits for a profile before it looks at the stop flag again [s].
+# The thread that answers, so a publisher may keep one reusable message per thread.
+INLINE, MODEL = 0, 1
+# How long the model thread waits for work before it looks at the stop flag again [s].
 IDLE_WAIT_S = 0.5
 
 
@@ -57,7 +62,7 @@ IDLE_WAIT_S = 0.5
 class Outputs:
     """The node's publishers, handed in as functions (no ROS here)."""
 
-    # (pred, stamp, latency_s): publish the prediction and the feedforward
+    # (pred, stamp, latency_s, thread): publish the prediction and the feedforward
     answer: Callable
     # (pred, stamp): publish the contact groups (on change, and on the node's timer)
     groups: Callable
@@ -69,7 +74,7 @@ class Outputs:
 
 class LiveSchedule:
     """
-    The answers, falling behind, shedding, the profile's model thread and the counters.
+    The queue, the inline answers, the model thread, shedding, the profile and the counters.
 
     ``runner`` (runner.ModelRunner) and ``assembler`` (runner.InputAssembler) are the same
     objects replay uses; ``params`` is a node_parameters.NodeParameters.  ``clock_ns`` gives
@@ -84,17 +89,20 @@ class LiveSchedule:
         self._monotonic = monotonic
         self._lock = threading.Lock()
         self._wake = threading.Condition(self._lock)
-        self._in_flight = 0         # samples handed in and not yet answered, shed or rejected
-        self._stepping = False      # the input thread is stepping the model: profiles yield
+        self._queue = collections.deque(maxlen=params.queue_size)
+        self._busy = False          # the model thread owns the runner until it clears this
+        self._stepping = False      # the input thread is stepping the model
+        self._profiling = False     # the model thread is stepping a copy for a profile
         self._profile_seed = None
         self._profiled = None       # the seed of the last profile published
         self._runner = runner
         self._assembler = assembler
         self._apply(params)
+        self._dropped = 0
         self._shed = 0
         self._received = collections.Counter()
         self._published = 0
-        self._held_answers = 0      # answered from a held state (no step for the sample)
+        self._inline = 0
         self._profiles = 0
         self._profiles_abandoned = 0
         self._profile_errors = 0
@@ -128,8 +136,8 @@ class LiveSchedule:
 
     # --- life cycle -----------------------------------------------------------------------
     def start(self):
-        """Start the profile's model thread; the schedule is ready (model built and warm)."""
-        self._thread = threading.Thread(target=self._profile_loop, name="friction_model",
+        """Start the model thread; the schedule is ready (model built and warm)."""
+        self._thread = threading.Thread(target=self._model_loop, name="friction_model",
                                         daemon=True)
         self._thread.start()
         self.ready = True
@@ -153,21 +161,22 @@ class LiveSchedule:
             self._runner = runner
 
     def idle(self):
-        """Return True when no input is being answered and no profile waits to start."""
+        """Return True when no input waits or is being stepped and no profile waits or runs."""
         with self._lock:
-            return not self._in_flight and self._profile_seed is None
+            return not (self._queue or self._busy or self._stepping or self._profiling
+                        or self._profile_seed is not None)
 
     # --- inputs ---------------------------------------------------------------------------
     def on_nut_state(self, stamp_s, names, positions, velocities, recv_ns, stamp,
-                     newest=None):
+                     more_waiting=False):
         """
-        Take one nut-state sample: step the model if due, answer it, publish the answer.
+        Take one nut-state sample: answer it now, or queue it for the model thread.
 
         ``recv_ns``: when the middleware received it (``clock_ns`` time); ``stamp``: the
         header stamp as the publisher wants it back (the original goes out unchanged: float
-        seconds lose ~0.2 us at epoch times).  ``newest``: (stamp_s, names, positions,
-        velocities) of the newest nut_state already received after this one (the input
-        thread's batch), or None: how the schedule tells that the model fell behind.
+        seconds lose ~0.2 us at epoch times).  ``more_waiting``: more nut_state inputs were
+        already received after this one (the input thread's batch): a due step then goes to
+        the model thread, which answers them in order and measures how far behind it is.
         """
         with self._lock:
             self._received["nut_state"] += 1
@@ -184,43 +193,32 @@ class LiveSchedule:
             w["accepted"] += 1
             runner = self._runner
             due = runner.step_due(sample)
-            behind = due and newest is not None and self._behind(runner, sample, newest)
-            self._in_flight += 1
-            self._stepping = due
+            if self._busy or (due and more_waiting):
+                # the model thread answers it, in order, after the step it waits for
+                if len(self._queue) == self._queue.maxlen:
+                    self._dropped += 1      # deque drops the oldest: the newest input wins
+                self._queue.append((sample, recv_ns, stamp))
+                self._busy = True
+                self._wake.notify()
+                return
+            self._stepping = due        # a profile in progress gives way
+        # The model thread idle (only this thread makes it busy), and no step due, or one
+        # due with no other input waiting: step if due, answer at once.
         try:
             resets = runner.stats.resets
-            pred = runner.process(sample, allow_step=not behind)
+            pred = runner.process(sample)
         finally:
             self._stepping = False
-        if runner.stats.resets != resets:
-            self._reset_warning(runner.stats.resets, sample.stamp_s)
-        if pred is not None and pred.stepped and profile_due(self._profiled, sample):
-            seed = (runner.profile_seed(sample), stamp)
-            with self._lock:
-                self._profile_seed = seed
-                self._wake.notify()
-        try:
-            self._finish(runner, pred, recv_ns, stamp)
-        finally:
-            with self._lock:
-                self._in_flight -= 1
-
-    def _behind(self, runner, sample, newest):
-        """
-        Whether a step at ``sample`` would leave one due again at ``newest`` (received).
-
-        The model then tracks the present, not its backlog: the step is left to the newest
-        sample.  Measured in the schedule's own terms (``runner.due_between``: angle,
-        direction, time floor); a ``newest`` that is no valid sample tells nothing.
-        """
-        n_stamp_s, names, positions, velocities = newest
-        try:
-            angle, velocity = joint_state_sample(names, positions, velocities,
-                                                 self._assembler.nut_joint)
-        except InputError:
-            return False
-        later = InputSample(n_stamp_s, angle, velocity, sample.axial_load_n)
-        return runner.due_between(sample, later)
+        if due:
+            if runner.stats.resets != resets:
+                self._reset_warning(runner.stats.resets, sample.stamp_s)
+            if pred is not None and pred.stepped and profile_due(self._profiled, sample):
+                seed = (runner.profile_seed(sample), stamp)
+                with self._lock:
+                    self._profile_seed = seed
+                    self._wake.notify()
+        self._inline += 1
+        self._finish(runner, pred, recv_ns, stamp, INLINE)
 
     def on_axial_load(self, force_z_n):
         """Take one axial load [N] (held until the next)."""
@@ -231,7 +229,7 @@ class LiveSchedule:
             except InputError as err:
                 self._runner.reject(err.reason)
 
-    def _finish(self, runner, pred, recv_ns, stamp):
+    def _finish(self, runner, pred, recv_ns, stamp, thread):
         """Publish the answer to one sample unless it is too old; count either."""
         if pred is None:        # counted by the runner as model_error
             self.outputs.log("error", f"model step failed: {runner.stats.last_error}; "
@@ -242,10 +240,9 @@ class LiveSchedule:
             with self._lock:
                 self._shed += 1
             return
-        self.outputs.answer(pred, stamp, 1e-9 * age_ns)
+        self.outputs.answer(pred, stamp, 1e-9 * age_ns, thread)
         with self._lock:
             self._published += 1
-            self._held_answers += not pred.stepped
             self._ff_held += pred.feedforward_held
             self._latest = pred
             self._latest_stamp = stamp
@@ -262,16 +259,49 @@ class LiveSchedule:
             self._last_groups = pred.groups
         self.outputs.groups(pred, stamp)
 
-    # --- model thread (the look-ahead profile) -------------------------------------------
-    def _profile_loop(self):
+    # --- model thread ---------------------------------------------------------------------
+    def _model_loop(self):
         while True:
             with self._lock:
-                while self._profile_seed is None and not self._stop:
+                while not self._queue and not self._stop:
+                    if self._profile_seed is not None:
+                        break
+                    self._busy = False
                     self._wake.wait(timeout=IDLE_WAIT_S)
                 if self._stop:
                     return
-                seed, self._profile_seed = self._profile_seed, None
-            self._publish_profile(seed)
+                if not self._queue:
+                    # queue drained, a profile to compute: inputs are answered inline
+                    # meanwhile; a step falling due abandons the profile
+                    seed, self._profile_seed = self._profile_seed, None
+                    self._busy = False
+                    self._profiling = True
+                    item = None
+                else:
+                    item = self._queue.popleft()
+                    newest = self._queue[-1][0] if self._queue else None
+                    runner = self._runner
+            if item is None:
+                try:
+                    self._publish_profile(seed)
+                finally:
+                    self._profiling = False
+                continue
+            sample, recv_ns, stamp = item
+            # The model fell behind when a step due now would be followed at once by another,
+            # for an input already waiting.  The step is left to the newest sample (the model
+            # tracks the present, not its backlog).  Measured in the schedule's own terms
+            # (angle, direction, time floor): a queue spanning a model period, the old test,
+            # grew to 10 ms at 20 rev/s, where nearly every input is due a step, and 25 % of
+            # the answers came later than max_answer_age_s (issue 20, item 3).
+            behind = newest is not None and runner.due_between(sample, newest)
+            resets = runner.stats.resets
+            pred = runner.process(sample, allow_step=not behind)
+            if runner.stats.resets != resets:
+                self._reset_warning(runner.stats.resets, sample.stamp_s)
+            if pred is not None and pred.stepped and profile_due(self._profiled, sample):
+                self._profile_seed = (runner.profile_seed(sample), stamp)
+            self._finish(runner, pred, recv_ns, stamp, MODEL)
 
     def _reset_warning(self, resets, stamp_s):
         """
@@ -295,7 +325,7 @@ class LiveSchedule:
         horizon, points = self._profile_shape
         try:
             out = look_ahead_profile(seed, horizon, points,
-                                     should_stop=lambda: self._stepping)
+                                     should_stop=lambda: self._busy or self._stepping)
         except Exception as exc:     # a failed look-ahead must not stop the answers
             with self._lock:
                 self._profile_errors += 1
@@ -352,15 +382,15 @@ class LiveSchedule:
             "coarse_steps": stats.coarse_steps,
             "stamp_stalls": stats.stamp_stalls,
             "term_restarts": stats.term_restarts,
-            "queue_length": self._in_flight,
-            "skipped_inputs": stats.skipped_steps,
+            "queue_length": len(self._queue),
+            "skipped_inputs": self._dropped + stats.skipped_steps,
             "skipped_steps": stats.skipped_steps,
-            "dropped_inputs": 0,    # the node drops none (the middleware's queue may)
+            "dropped_inputs": self._dropped,
             "shed_inputs": self._shed,
             "shed_since_last_report": self._shed - w["shed"],
             "max_answer_age_s": 1e-9 * self._max_age_ns,
             "published": self._published,
-            "answered_held": self._held_answers,
+            "answered_inline": self._inline,
             "profiles": self._profiles,
             "profiles_abandoned": self._profiles_abandoned,
             "profile_errors": self._profile_errors,

@@ -84,8 +84,9 @@ class FrictionNode(Node):
                                       f"{', '.join(PARAMETERS)})")
         self._pending = None    # (parameters, runner, names) validated, applied after the set
         self._other_publishers = {}
-        self._out = (FrictionPrediction(check_fields=False),      # our own values are floats
-                     Float64MultiArray(data=[0.0], check_fields=False))     # (no checks)
+        # our own values are floats: no per-field checks; a pair per answering thread
+        self._out = [(FrictionPrediction(check_fields=False),
+                      Float64MultiArray(data=[0.0], check_fields=False)) for _ in range(2)]
         depth = interface.OUTPUT_QOS_DEPTH
         self._pub_pred = self.create_publisher(FrictionPrediction, interface.PREDICTION, depth)
         self._pub_groups = self.create_publisher(ContactGroupStatus, interface.CONTACT_GROUPS,
@@ -122,19 +123,16 @@ class FrictionNode(Node):
 
     # --- inputs and outputs (the schedule is live.LiveSchedule) ----------------------------
     def _on_nut_state(self, msg, recv_ns, newest=None):
-        stamp = msg.header.stamp
-        if newest is not None:      # the newest nut_state already taken (InputTaker)
-            newest = (newest.header.stamp.sec + 1e-9 * newest.header.stamp.nanosec,
-                      newest.name, newest.position, newest.velocity)
+        stamp = msg.header.stamp     # newest: a later nut_state already taken (InputTaker)
         self.live.on_nut_state(stamp.sec + 1e-9 * stamp.nanosec, msg.name, msg.position,
-                               msg.velocity, recv_ns, stamp, newest)
+                               msg.velocity, recv_ns, stamp, newest is not None)
 
     def _on_axial_load(self, msg):
         self.live.on_axial_load(msg.wrench.force.z)
 
-    def _answer(self, pred, stamp, latency_s):
-        """Publish prediction and feedforward in the reused pair (~60 us saved)."""
-        msg, ff = self._out
+    def _answer(self, pred, stamp, latency_s, thread):
+        """Publish prediction and feedforward in the thread's own reused pair (~60 us saved)."""
+        msg, ff = self._out[thread]
         msg.header.stamp = stamp
         for name, value in zip(interface.PREDICTION_FIELDS,
                                interface.prediction_values(pred, latency_s)):

@@ -133,7 +133,7 @@ class InputTaker:
                 if self._stop:
                     return
                 if is_state:
-                    # the newest input already waiting tells the schedule it fell behind
+                    # whether inputs wait behind this one: the schedule's hand-off rule
                     on_state(msg, recv_ns or time.time_ns(), newest if msg is not newest
                              else None)
                 else:
