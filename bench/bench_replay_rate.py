@@ -6,16 +6,19 @@ Asserts nothing; prints the table.
 For each speed a 6-second recording of steady rotation (nut_state at 1 kHz, axial_load
 1500 N at 100 Hz, a measured torque at 1 kHz) is generated once into ``--workdir`` (mcap),
 then ``bb-friction replay`` runs it in a child process, writing prediction.csv and the output
-bag (``--no-bag`` too, for the split).  The figure is replay's own ``speed_vs_realtime``
-(summary.json: recording span / wall time of the streaming loop: reading, the model,
-writing; start-up and plots excluded), median of ``--repeats``.  Two baselines in the same
-run: a child that only reads every message of the bag with rosbags, and the model's share:
-model steps (summary.json) times the mean step time of the same steps measured in-process
-(``ModelRunner`` on the same samples), so what is neither reading nor the model is the
-per-sample overhead of replay.  ``--bb-friction PATH`` measures another installation.
+bag (``--no-bag`` too, for the split), median of ``--repeats``.  Figures: replay's own
+``speed_vs_realtime`` (summary.json: recording span / wall time of the streaming loop:
+reading, the model, writing; start-up and plots excluded), the same from the loop's CPU
+time (``cpu_s``: on a machine shared with other work the wall time measures them too), and
+the child's whole CPU time.  The split, in CPU seconds per second of recording: the model
+(model steps from summary.json times the mean CPU time of the same steps measured
+in-process, ``ModelRunner`` on the same samples), reading (a child that only reads every
+message of the bag with rosbags), and the rest, replay's own per-message work.
+``--bb-friction PATH`` measures another installation; ``--baseline PATH`` runs a second one
+alternately with it, so both see the same load.
 
 Usage: .venv/bin/python bench/bench_replay_rate.py [--speeds 1 20] [--repeats 3]
-       [--workdir out/bench_replay_rate] [--bb-friction PATH]
+       [--workdir out/bench_replay_rate] [--bb-friction PATH] [--baseline PATH]
 """
 
 import argparse
@@ -23,6 +26,7 @@ import json
 import math
 import os
 from pathlib import Path
+import resource
 import statistics
 import subprocess
 import sys
@@ -36,12 +40,12 @@ LOAD_N = 1500.0
 READ_ONLY = """
 import sys, time
 from rosbags.rosbag2 import Reader
-t0 = time.perf_counter()
+c0 = time.process_time()
 n = 0
 with Reader(sys.argv[1]) as reader:
     for _ in reader.messages():
         n += 1
-print(n, time.perf_counter() - t0)
+print(n, time.process_time() - c0)
 """
 
 
@@ -69,24 +73,35 @@ def bag_of(work, rev_s):
 
 
 def child(cmd):
+    """Run ``cmd``; return (its stdout, its CPU time [s], start-up and plots included)."""
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
     env.pop("_ROS_WHEELS_BOOTSTRAP_COMPLETE", None)
-    return subprocess.run(cmd, check=True, capture_output=True, text=True, env=env).stdout
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    out = subprocess.run(cmd, check=True, capture_output=True, text=True, env=env).stdout
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return out, (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
 
 
 def model_step_s(rev_s):
-    """Mean wall time of a model step on this recording's samples, in-process (no I/O)."""
+    """Mean CPU time of a model step on this recording's samples, in-process (no I/O)."""
     from bb_friction_ros.config import bundled_config
     from bb_friction_ros.runner import build_runner, InputSample
     runner = build_runner(bundled_config("ball_screw.yaml"), 100.0)
     w = 2.0 * math.pi * rev_s
     samples = [InputSample(100.0 + k / STATE_HZ, w * k / STATE_HZ, w, LOAD_N)
                for k in range(int(DURATION_S * STATE_HZ))]
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     for s in samples:
         runner.process(s)
-    wall = time.perf_counter() - t0
-    return wall / runner.stats.model_steps, wall, runner.stats.model_steps
+    cpu = time.process_time() - t0
+    return cpu / runner.stats.model_steps, cpu, runner.stats.model_steps
+
+
+def replay_once(exe, bag, out, write_bag):
+    """Return (summary.json, the child's CPU time) of one replay."""
+    _, cpu = child([exe, "replay", str(bag), "--out", str(out), "--no-progress"]
+                   + ([] if write_bag else ["--no-bag"]))
+    return json.loads((out / "summary.json").read_text()), cpu
 
 
 def main():
@@ -96,35 +111,45 @@ def main():
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--workdir", default="out/bench_replay_rate")
     ap.add_argument("--bb-friction", default=str(Path(sys.executable).parent / "bb-friction"))
+    ap.add_argument("--baseline", help="another bb-friction executable, run alternately with "
+                    "--bb-friction in the same run (e.g. main's .venv/bin/bb-friction)")
     args = ap.parse_args()
     work = Path(args.workdir)
     print(f"load before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}; "
           f"{DURATION_S:g} s recordings, nut_state {STATE_HZ:g} Hz")
-    print(f"{'rev/s':>6} {'output':>8} {'x real time':>11} {'steps/s':>8} "
-          f"{'model s/s':>9} {'read s/s':>8} {'other s/s':>9}")
+    print("x wall: summary's speed_vs_realtime (recording span / wall time of the streaming "
+          "loop); x CPU: span / the loop's CPU time (cpu_s, where the installation reports "
+          "it); child CPU: the whole command's CPU time, start-up and plots included")
+    print(f"{'rev/s':>6} {'output':>8} {'who':>5} {'x wall':>7} {'x CPU':>6} {'child CPU':>9} "
+          f"{'steps/s':>8} {'model s/s':>9} {'read s/s':>8} {'other s/s':>9}")
+    who = [("this", args.bb_friction)] + ([("base", args.baseline)] if args.baseline else [])
     for rev_s in args.speeds:
         bag = bag_of(work, rev_s)
-        n, read_s = child([sys.executable, "-c", READ_ONLY, str(bag)]).split()
+        n, read_s = child([sys.executable, "-c", READ_ONLY, str(bag)])[0].split()
         read_per_s = float(read_s) / DURATION_S
         step_s, _, _ = model_step_s(rev_s)
         for write_bag in (True, False):
-            speeds, steps = [], None
+            runs = {name: [] for name, _ in who}
             for _ in range(args.repeats):
-                out = work / f"replay_{rev_s:g}"
-                child([args.bb_friction, "replay", str(bag), "--out", str(out),
-                       "--no-progress"] + ([] if write_bag else ["--no-bag"]))
-                summary = json.loads((out / "summary.json").read_text())
-                speeds.append(summary["speed_vs_realtime"])
-                steps = summary["model_steps"]
-            x = statistics.median(speeds)
-            steps_per_s = steps / DURATION_S
-            model = steps_per_s * step_s
-            other = 1.0 / x - model - read_per_s
-            print(f"{rev_s:6g} {'bag+csv' if write_bag else 'csv':>8} {x:11.1f} "
-                  f"{steps_per_s:8.0f} {model:9.3f} {read_per_s:8.3f} {other:9.3f}",
-                  flush=True)
-    print("model/read/other: seconds of wall time per second of recording "
-          "(1 / x real time = their sum)")
+                for name, exe in who:          # alternately: both see the same load
+                    runs[name].append(replay_once(exe, bag, work / f"replay_{rev_s:g}_{name}",
+                                                  write_bag))
+            for name, _ in who:
+                summaries = [r[0] for r in runs[name]]
+                x = statistics.median(s["speed_vs_realtime"] for s in summaries)
+                cpus = [s.get("cpu_s") for s in summaries]
+                x_cpu = DURATION_S / statistics.median(cpus) if None not in cpus else math.nan
+                child_cpu = statistics.median(r[1] for r in runs[name])
+                steps_per_s = summaries[0]["model_steps"] / DURATION_S
+                model = steps_per_s * step_s
+                # the loop's CPU per second of recording, less the model's and the reading's
+                other = (1.0 / x_cpu if x_cpu == x_cpu else 1.0 / x) - model - read_per_s
+                print(f"{rev_s:6g} {'bag+csv' if write_bag else 'csv':>8} {name:>5} {x:7.1f} "
+                      f"{x_cpu:6.1f} {child_cpu:9.2f} {steps_per_s:8.0f} {model:9.3f} "
+                      f"{read_per_s:8.3f} {other:9.3f}", flush=True)
+    print("model/read/other: CPU seconds per second of recording (1 / x CPU = their sum; "
+          "other = replay's own per-message work: decoding, runner bookkeeping, alignment, "
+          "CSV and bag writing); model from this installation's runner in-process")
     print(f"load after: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
 
 
