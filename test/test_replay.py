@@ -654,3 +654,52 @@ def test_ctrl_c_leaves_no_stale_summary_and_exits_130(tmp_path):
     assert "Traceback" not in err and "interrupted" in err
     summary = json.loads((out / "summary.json").read_text())
     assert summary["complete"] is False and summary["bag"] == str(tmp_path / "big")
+
+
+@pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
+def test_streamed_replay_gives_run_events_predictions_and_rejections(tmp_path, storage):
+    """
+    replay decodes blocks with numpy and checks decoded samples inline (issue 20); the node's
+    path is run_events (InputAssembler, feed_event), which the live = replay tests compare
+    with the node: both must give the same rows, values and rejection counts, on a recording
+    with samples before any load, wrong and extra joints, NaN, absurd and NaN loads, stalls.
+    """
+    from bb_friction_ros.config import bundled_config
+    from bb_friction_ros.node_parameters import NodeParameters
+    from bb_friction_ros.replay import replay, run_events
+    from bb_friction_ros.runner import build_runner, InputAssembler
+    p = NodeParameters()
+    w = 2.0 * math.pi
+    events = [Event("nut_state", 0.0005, ("nut_joint",), (0.0,), (w,))]     # no load yet
+    for k in range(600):
+        t = 0.001 * (k + 1)
+        if k % 10 == 0:
+            load = {100: math.nan, 200: 5e9}.get(k, 1500.0 + k)
+            events.append(Event("axial_load", t, value=load))
+        names, pos, vel = ("nut_joint",), (w * t,), (w,)
+        if k % 97 == 5:
+            names, pos, vel = ("other",), (w * t,), (w,)
+        elif k % 89 == 7:
+            pos = (math.nan,)
+        elif k % 61 == 3:
+            names, pos, vel = ("a", "nut_joint"), (9.0, w * t), (0.0, w)
+        elif k % 53 == 11:
+            vel = ()
+        events.append(Event("nut_state", t if k % 71 != 9 else t - 0.001, names, pos, vel))
+    recorded = with_measurement(events, [0.3] * 601)
+    # logged in list order (a stamp going back must not reorder the bag)
+    write_events(tmp_path / "bag", recorded, storage=storage,
+                 log_times_s=[1e-4 * i for i in range(len(recorded))])
+    summary = replay(tmp_path / "bag", tmp_path / "out", progress=False)
+    runner = build_runner(bundled_config("ball_screw.yaml"), p.model_rate_hz)
+    ref = run_events(events, runner, InputAssembler(p.nut_joint, p.max_axial_load_n))
+    rows = list(csv.DictReader(open(tmp_path / "out" / "prediction.csv")))
+    assert len(rows) == len(ref) > 500 and summary["samples"] == len(ref)
+    for row, pred in zip(rows, ref):
+        assert float(row["t_s"]) == pytest.approx(pred.stamp_s, abs=1e-9)
+        assert (float(row["nut_angle_rad"]), float(row["axial_load_n"]),
+                float(row["torque_pred_nm"]), float(row["torque_b2b_nm"])) == \
+            (pred.nut_angle_rad, pred.axial_load_n, pred.torque_total_nm, pred.torque_b2b_nm)
+    assert summary["rejected"] == dict(runner.stats.rejected)
+    assert {"no_load_yet", "wrong_joint", "non_finite", "absurd_load",
+            "missing_velocity"} <= set(summary["rejected"]), summary["rejected"]
