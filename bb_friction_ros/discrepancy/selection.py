@@ -336,10 +336,7 @@ def fit(members, x, r, cache=None, tau=1.0):
         coef = np.zeros(0)
         rss = float(r @ r)
     else:
-        # the normal equations, columns scaled (_solve, as Gram's fits): an SVD of the whole
-        # design per call made refine's bounded searches 73 % of a selection on a 60 s 1 kHz
-        # recording (issue 21 runs one per physical candidate); a.T @ a is ~17x faster
-        coef = _solve(a.T @ a, a.T @ r)
+        coef, *_ = np.linalg.lstsq(a, r, rcond=None)
         res = r - a @ coef
         rss = float(res @ res)
     k = sum(c.n_params for c, _ in members)
