@@ -16,9 +16,9 @@ Who steps and answers:
 - a step due, the model thread idle and no other input waiting (``more_waiting`` False:
   the input thread's batch held nothing after it): stepped and answered in the caller's
   thread too.
-  A hand-off to the model thread costs a scheduler wake-up: measured in-process at 1 rev/s,
-  load 8-8.8, the p99 from input to answer was 8.5-22.9 ms through the model thread and
-  0.87-0.91 ms stepped in the caller's thread (docs/model_schedule.md);
+  A hand-off to the model thread costs a scheduler wake-up: in-process at 1 rev/s, load
+  8, the p99 from input to answer was 1.1-21.5 ms through the model thread and 0.7-0.8 ms
+  stepped in the caller's thread (bench/bench_live_handoff.py, docs/model_schedule.md);
 - a step due while other inputs wait, or any input while the model thread works: queued
   for the model thread, which steps, answers it and everything queued behind it in order.
 
