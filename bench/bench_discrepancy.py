@@ -663,7 +663,8 @@ def physical_section(args):
                "value": choice.value if choice else None, "terms": a.terms.names,
                "runs": a.physical.runs + a.physical.validation_runs, "wall": wall,
                "rmse_ok": ok_rmse, "reducible": reducible,
-               "ambiguous": [x["pair"] for x in a.ambiguities if not x["separated"]],
+               "ambiguous": [x["pair"] for x in a.ambiguities + a.physical.identifiability
+                             if not x["separated"]],
                "snr": effect_rms / noise_std, "evidence": evidence, "price": price,
                "evidence_beside": evidence_beside,
                "phys_wall": a.physical.wall_s}

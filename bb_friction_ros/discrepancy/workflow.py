@@ -272,7 +272,7 @@ def analyse(rec, settings, physics=None):
                                                     noise.tau)
     shift = physical.shift_nm(search, n)      # the chosen physical change (issue 21), or 0
     ambiguous = ambiguities(ctx, x_fit, (r - shift)[fit_part], settings) if len(terms) else []
-    ambiguous += search.identifiability if physical.chosen(search) else []
+    ambiguous += search.identifiability if search is not None else []   # chosen, or a twin
     x = inputs_of(rec)
     rejected = None
     added = shift + (terms.torque_nm(x.t_s, x.nut_angle_rad, x.nut_velocity_rad_s,
