@@ -436,13 +436,15 @@ def measured_torque_at(events, stamps_s):
             aligner.add_measured(e.stamp_s, e.value)
     if aligner.samples == 0:
         return None
-    out = []
-    for k, t in enumerate(np.asarray(stamps_s, dtype=float)):
-        out.extend(aligner.add_prediction(float(t), k))
-    out.extend(aligner.finish())
-    values = np.full(len(out), np.nan)
-    for k, v in out:
-        values[k] = v
+    # each prediction gets exactly one (index, value), filled in as the aligner releases it:
+    # a list of 600,000 (index, value) tuples first peaked ~85 MB above the array (issue 19)
+    stamps = np.asarray(stamps_s, dtype=float)
+    values = np.full(stamps.size, np.nan)
+    for k, t in enumerate(stamps):
+        for j, v in aligner.add_prediction(float(t), k):
+            values[j] = v
+    for j, v in aligner.finish():
+        values[j] = v
     return values
 
 

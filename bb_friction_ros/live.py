@@ -6,24 +6,32 @@ The live schedule of ``friction_node``, without ROS: who answers an input, and w
 (``Outputs``).  Everything between is here, so it is tested without DDS
 (``test/test_live.py``).
 
-Per-input path: a nut-state sample is validated (``runner.InputAssembler``); when no model
-step is due (most inputs: the model steps every ``model_step_deg`` of nut rotation, the
-inputs come at the controller's rate) it is answered at once from the latest model state, in
-the caller's thread.  A sample that is due a step (or arrives while one is running) goes to
-the model thread, which steps the whole-screw model (a numba kernel that releases the GIL,
-so the input thread keeps taking inputs), answers it and everything queued behind it in
-order, and then, once per model period of motion (``runner.profile_due``), steps a copy of
-the state ahead for the look-ahead profile, giving way to the next due step.  Every sample
-reaches the runner in arrival order, so the answers equal replay's exactly (the runner is
-the same).
+Per-input path: a nut-state sample is validated (``runner.InputAssembler``) and reaches the
+runner in arrival order, so the answers equal replay's exactly (the runner is the same).
+Who steps and answers:
+
+- no step due (most inputs at low speed: the model steps every ``model_step_deg`` of nut
+  rotation, the inputs come at the controller's rate): answered at once from the latest
+  model state, in the caller's (input) thread;
+- a step due, the model thread idle and no other input waiting (``more_waiting`` False:
+  the input thread's batch held nothing after it): stepped and answered in the caller's
+  thread too.
+  A hand-off to the model thread costs a scheduler wake-up: in-process at 1 rev/s, load
+  8, the p99 from input to answer was 1.1-21.5 ms through the model thread and 0.7-0.8 ms
+  stepped in the caller's thread (bench/bench_live_handoff.py, docs/model_schedule.md);
+- a step due while other inputs wait, or any input while the model thread works: queued
+  for the model thread, which steps, answers it and everything queued behind it in order.
+
+After a step, once per model period of motion (``runner.profile_due``), the model thread
+steps a copy of the state ahead for the look-ahead profile, giving way to the next step.
 
 Answer age is bounded: an answer older than ``max_answer_age_s`` since the input was
 received by the middleware is not published but counted (``shed_inputs``); its sample still
 goes through the runner, so the model is not disturbed.  When the model itself falls behind
-(a step now would leave another due at an input already waiting), a step due on a
-queued sample is not taken (``process(allow_step=False)``: the runner counts it and turns
-its schedule coarser); the newest sample steps.  Answers then differ from replay's, and
-diagnostics say so.
+(a step now would leave another due at an input already waiting in its queue), a step due
+on a queued sample is not taken (``process(allow_step=False)``: the runner counts it and
+turns its schedule coarser); the newest sample steps.  Answers then differ from replay's,
+and diagnostics say so.
 
 Health (``status``), as diagnostic_updater's ``FrequencyStatus`` would judge it: ERROR when
 no nut_state arrived for ``input_timeout_s``; WARN when the model stepped less often than
@@ -83,6 +91,8 @@ class LiveSchedule:
         self._wake = threading.Condition(self._lock)
         self._queue = collections.deque(maxlen=params.queue_size)
         self._busy = False          # the model thread owns the runner until it clears this
+        self._stepping = False      # the input thread is stepping the model
+        self._profiling = False     # the model thread is stepping a copy for a profile
         self._profile_seed = None
         self._profiled = None       # the seed of the last profile published
         self._runner = runner
@@ -151,18 +161,22 @@ class LiveSchedule:
             self._runner = runner
 
     def idle(self):
-        """Return True when no input waits and the model thread is not stepping."""
+        """Return True when no input waits or is being stepped and no profile waits or runs."""
         with self._lock:
-            return not self._queue and not self._busy
+            return not (self._queue or self._busy or self._stepping or self._profiling
+                        or self._profile_seed is not None)
 
     # --- inputs ---------------------------------------------------------------------------
-    def on_nut_state(self, stamp_s, names, positions, velocities, recv_ns, stamp):
+    def on_nut_state(self, stamp_s, names, positions, velocities, recv_ns, stamp,
+                     more_waiting=False):
         """
         Take one nut-state sample: answer it now, or queue it for the model thread.
 
         ``recv_ns``: when the middleware received it (``clock_ns`` time); ``stamp``: the
         header stamp as the publisher wants it back (the original goes out unchanged: float
-        seconds lose ~0.2 us at epoch times).
+        seconds lose ~0.2 us at epoch times).  ``more_waiting``: more nut_state inputs were
+        already received after this one (the input thread's batch): a due step then goes to
+        the model thread, which answers them in order and measures how far behind it is.
         """
         with self._lock:
             self._received["nut_state"] += 1
@@ -178,7 +192,8 @@ class LiveSchedule:
             w["last_stamp"] = sample.stamp_s
             w["accepted"] += 1
             runner = self._runner
-            if self._busy or runner.step_due(sample):
+            due = runner.step_due(sample)
+            if self._busy or (due and more_waiting):
                 # the model thread answers it, in order, after the step it waits for
                 if len(self._queue) == self._queue.maxlen:
                     self._dropped += 1      # deque drops the oldest: the newest input wins
@@ -186,10 +201,24 @@ class LiveSchedule:
                 self._busy = True
                 self._wake.notify()
                 return
-        # No step due and the model thread idle (only this thread makes it busy): answer
-        # from the latest state at once.
+            self._stepping = due        # a profile in progress gives way
+        # The model thread idle (only this thread makes it busy), and no step due, or one
+        # due with no other input waiting: step if due, answer at once.
+        try:
+            resets = runner.stats.resets
+            pred = runner.process(sample)
+        finally:
+            self._stepping = False
+        if due:
+            if runner.stats.resets != resets:
+                self._reset_warning(runner.stats.resets, sample.stamp_s)
+            if pred is not None and pred.stepped and profile_due(self._profiled, sample):
+                seed = (runner.profile_seed(sample), stamp)
+                with self._lock:
+                    self._profile_seed = seed
+                    self._wake.notify()
         self._inline += 1
-        self._finish(runner, runner.process(sample), recv_ns, stamp, INLINE)
+        self._finish(runner, pred, recv_ns, stamp, INLINE)
 
     def on_axial_load(self, force_z_n):
         """Take one axial load [N] (held until the next)."""
@@ -246,13 +275,17 @@ class LiveSchedule:
                     # meanwhile; a step falling due abandons the profile
                     seed, self._profile_seed = self._profile_seed, None
                     self._busy = False
+                    self._profiling = True
                     item = None
                 else:
                     item = self._queue.popleft()
                     newest = self._queue[-1][0] if self._queue else None
                     runner = self._runner
             if item is None:
-                self._publish_profile(seed)
+                try:
+                    self._publish_profile(seed)
+                finally:
+                    self._profiling = False
                 continue
             sample, recv_ns, stamp = item
             # The model fell behind when a step due now would be followed at once by another,
@@ -291,7 +324,8 @@ class LiveSchedule:
         seed, stamp = seed_stamp
         horizon, points = self._profile_shape
         try:
-            out = look_ahead_profile(seed, horizon, points, should_stop=lambda: self._busy)
+            out = look_ahead_profile(seed, horizon, points,
+                                     should_stop=lambda: self._busy or self._stepping)
         except Exception as exc:     # a failed look-ahead must not stop the answers
             with self._lock:
                 self._profile_errors += 1

@@ -2,14 +2,14 @@
 ROS 2 node ``friction_node``: predicted ball-screw friction torque for a motion controller.
 
 A thin shell: parameters, subscriptions, publishers, diagnostics.  Who answers an input and
-when (queue, inline answers, model thread, shedding, coarser steps, look-ahead profile,
-counters, health) is ``live.LiveSchedule``, ROS-free; ``ros_inputs.InputTaker`` takes the
-inputs off the wire.  Every sample reaches the ``runner.ModelRunner`` replay uses, in arrival
-order, so live equals replay.  Topics, types and QoS: ``interface.py``; subscribes
-``nut_state``, ``axial_load``; publishes ``friction/prediction`` (stamped with the input's
-stamp), ``friction/feedforward`` (Float64MultiArray [torque], the ros2_control forward-command
-convention; the runner's safe value), ``friction/feedforward_profile`` (a step per model period),
-``friction/contact_groups`` (on change and at ``groups_rate_hz``) and ``/diagnostics``.
+when (steps, falling behind, shedding, the look-ahead profile, counters, health) is
+``live.LiveSchedule``, ROS-free; ``ros_inputs.InputTaker`` takes the inputs off the wire.
+Every sample reaches the ``runner.ModelRunner`` replay uses, in arrival order, so live
+equals replay.  Topics, types and QoS: ``interface.py``; subscribes ``nut_state``,
+``axial_load``; publishes ``friction/prediction`` (the input's stamp),
+``friction/feedforward`` (Float64MultiArray [torque], the ros2_control forward-command
+convention; the runner's safe value), ``friction/feedforward_profile`` (once per model
+period), ``friction/contact_groups`` (on change, at ``groups_rate_hz``), ``/diagnostics``.
 """
 
 import dataclasses
@@ -27,7 +27,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray
+from std_msgs.msg import Float64MultiArray, Header
 
 from bb_friction_ros import interface
 from bb_friction_ros.config import bundled_config, ConfigError
@@ -84,8 +84,7 @@ class FrictionNode(Node):
                                       f"{', '.join(PARAMETERS)})")
         self._pending = None    # (parameters, runner, names) validated, applied after the set
         self._other_publishers = {}
-        # Our own values are floats by construction: no per-field checks (see _answer); one
-        # reusable pair per answering thread (live.INLINE, live.MODEL).
+        # our own values are floats: no per-field checks; a pair per answering thread
         self._out = [(FrictionPrediction(check_fields=False),
                       Float64MultiArray(data=[0.0], check_fields=False)) for _ in range(2)]
         depth = interface.OUTPUT_QOS_DEPTH
@@ -101,7 +100,7 @@ class FrictionNode(Node):
             InputAssembler(p.nut_joint, p.max_axial_load_n), p,
             Outputs(answer=self._answer, groups=self._publish_groups,
                     profile=self._publish_profile, log=self._log))
-        # sensor-data semantics (best effort, volatile), the depth of our own queue
+        # sensor-data semantics (best effort, volatile); inputs wait here while we step
         qos = QoSProfile(depth=p.queue_size, durability=DurabilityPolicy.VOLATILE,
                          reliability=(ReliabilityPolicy.RELIABLE if p.reliable_qos
                                       else ReliabilityPolicy.BEST_EFFORT))
@@ -123,10 +122,10 @@ class FrictionNode(Node):
             + f" ({process_cpu_s():.2f} s of CPU)")
 
     # --- inputs and outputs (the schedule is live.LiveSchedule) ----------------------------
-    def _on_nut_state(self, msg, recv_ns):
-        stamp = msg.header.stamp
+    def _on_nut_state(self, msg, recv_ns, newest=None):
+        stamp = msg.header.stamp     # newest: a later nut_state already taken (InputTaker)
         self.live.on_nut_state(stamp.sec + 1e-9 * stamp.nanosec, msg.name, msg.position,
-                               msg.velocity, recv_ns, stamp)
+                               msg.velocity, recv_ns, stamp, newest is not None)
 
     def _on_axial_load(self, msg):
         self.live.on_axial_load(msg.wrench.force.z)
@@ -143,14 +142,10 @@ class FrictionNode(Node):
         self._pub_ff.publish(ff)
 
     def _publish_profile(self, sample, stamp, angles, torques, converged):
-        msg = FeedforwardProfile()
-        msg.header.stamp = stamp
-        msg.nut_angle_rad = angles
-        msg.torque_total_nm = torques
-        msg.nut_velocity_rad_s = sample.nut_velocity_rad_s
-        msg.axial_load_n = sample.axial_load_n
-        msg.converged = converged
-        self._pub_profile.publish(msg)
+        self._pub_profile.publish(FeedforwardProfile(
+            header=Header(stamp=stamp), nut_angle_rad=angles, torque_total_nm=torques,
+            nut_velocity_rad_s=sample.nut_velocity_rad_s, axial_load_n=sample.axial_load_n,
+            converged=converged))
 
     def _publish_groups(self, pred, stamp):
         msg = ContactGroupStatus()

@@ -32,8 +32,9 @@ class NodeParameters:
     max_model_step_deg: float = field(14.4, "deg", "coarsest step the live model takes when "
                                       "it cannot keep up (counted in diagnostics)", lo=0.05,
                                       hi=360.0)
-    queue_size: int = field(256, "1", "inputs waiting for the model thread; when full the "
-                            "oldest is dropped (newest wins)", lo=1, hi=100000)
+    queue_size: int = field(256, "1", "inputs waiting for the model thread, and the depth "
+                            "of the input subscriptions; when full the oldest is dropped "
+                            "(newest wins)", lo=1, hi=100000)
     groups_rate_hz: float = field(10.0, "Hz", "contact-group status rate", lo=0.1, hi=1000.0)
     diagnostics_rate_hz: float = field(1.0, "Hz", "diagnostics rate", lo=0.1, hi=100.0)
     input_timeout_s: float = field(1.0, "s", "diagnostics go to ERROR when no nut_state "

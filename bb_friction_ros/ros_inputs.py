@@ -54,9 +54,11 @@ class InputTaker:
     """
     Take the input messages in arrival order, in a thread of our own (or leave the executor).
 
-    ``on_load(msg)`` and ``on_state(msg, recv_ns)`` are the node's handlers; ``recv_ns`` is
-    the middleware's receive time (``time.time_ns`` scale).  The subscriptions must have
-    been created with callbacks that call the same handlers (the executor's path).
+    ``on_load(msg)`` and ``on_state(msg, recv_ns, newest)`` are the node's handlers;
+    ``recv_ns`` is the middleware's receive time (``time.time_ns`` scale), ``newest`` the
+    newest nut_state taken with it and still to come (None: none; the executor's path, which
+    takes one message at a time, never knows).  The subscriptions must have been created
+    with callbacks that call the same handlers (the executor's path).
     """
 
     def __init__(self, node, load_sub, state_sub, on_load, on_state):
@@ -125,10 +127,14 @@ class InputTaker:
                 raise
             # arrival order across the two topics, as a recorder (and replay) sees them
             batch.sort(key=lambda item: item[0])
+            states = [got[0] for _, is_state, got in batch if is_state]
+            newest = states[-1] if states else None
             for recv_ns, is_state, (msg, _) in batch:
                 if self._stop:
                     return
                 if is_state:
-                    on_state(msg, recv_ns or time.time_ns())
+                    # whether inputs wait behind this one: the schedule's hand-off rule
+                    on_state(msg, recv_ns or time.time_ns(), newest if msg is not newest
+                             else None)
                 else:
                     on_load(msg)

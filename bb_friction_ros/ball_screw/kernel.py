@@ -1138,77 +1138,21 @@ def _solve_guess(x, u, forces, ring_active, pair_idx, centres, sign, cst, k_load
                             max_it, max_rate, disp_limit, max_changes, budget)
 
 
-# The warm start's curvature term (``curvature_correction``) is added to a ball's secant
-# prediction only where it is at most this share of the secant increment: a larger one means
-# the ball's path bends sharply (a contact closed or a group was pushed), where the quadratic
-# extrapolation overshoots.  Measured at N = 37, 1.8 deg steps: mean Newton iterations per
-# step 3.43 -> 3.02 rigid, 3.91 -> 3.57 elastic; a limit of 0.1 gained nothing, none at all
-# took 13-27 iterations after contact changes.
-CURVATURE_LIMIT = 0.3
-
-
 @_jit(exact=True)
-def curvature_correction(x, u, forces, x_prev, u_prev, f_prev, x_prev2, u_prev2, f_prev2,
-                         d_psi, h1, h2, gx, gu, gf):
-    """
-    Add the quadratic (three-point) term to the secant guesses gx, gu, gf in place.
-
-    The states of the last three steps at nut angles -h1 - h2, -h1 and 0 (x_prev2, x_prev,
-    x) extrapolated to d_psi: secant + q ((x - x_prev) / h1 - (x_prev - x_prev2) / h2) with
-    q = d_psi (d_psi + h1) / (h1 + h2) (Newton's divided differences).  Per ball only where
-    its two ring pairs kept their contact state over the three steps and the term is at most
-    ``CURVATURE_LIMIT`` of the secant increment r (x - x_prev), r = d_psi / h1; per ring pair
-    (B2B force) where both its balls qualify; always for u.  ``whole_screw._guesses`` is the
-    numpy reference.
-    """
-    n = x.shape[0]
-    q = d_psi * (d_psi + h1) / (h1 + h2)
-    r = d_psi / h1
-    smooth = np.empty(n, dtype=np.bool_)
-    for i in range(n):
-        ok = True
-        for p in ((i - 1) % n, i):
-            now = forces[p] > 0.0
-            if now != (f_prev[p] > 0.0) or now != (f_prev2[p] > 0.0):
-                ok = False
-        if ok:
-            big_c = 0.0
-            big_s = 0.0
-            for j in range(x.shape[1]):
-                big_c = max(big_c, abs(q * ((x[i, j] - x_prev[i, j]) / h1
-                                            - (x_prev[i, j] - x_prev2[i, j]) / h2)))
-                big_s = max(big_s, abs(r * (x[i, j] - x_prev[i, j])))
-            ok = big_c <= CURVATURE_LIMIT * big_s
-        smooth[i] = ok
-    for i in range(n):
-        if smooth[i]:
-            for j in range(x.shape[1]):
-                gx[i, j] += q * ((x[i, j] - x_prev[i, j]) / h1
-                                 - (x_prev[i, j] - x_prev2[i, j]) / h2)
-    for k in range(u.shape[0]):
-        gu[k] += q * ((u[k] - u_prev[k]) / h1 - (u_prev[k] - u_prev2[k]) / h2)
-    for p in range(n):
-        if smooth[p] and smooth[(p + 1) % n]:
-            gf[p] += q * ((forces[p] - f_prev[p]) / h1 - (f_prev[p] - f_prev2[p]) / h2)
-
-
-@_jit(exact=True)
-def warm_solve(x, u, x_prev, u_prev, f_prev, d_psi_prev, x_prev2, u_prev2, f_prev2,
-               d_psi_prev2, forces, ring_active, d_psi, pair_idx, centres, sign, cst, k_load,
-               k_axis, on_nut, coef_s, coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f,
-               c_r, c_f, k_r, k_f, order, comp_a, comp_b, tol, max_it, max_rate, disp_limit,
-               max_changes, budget):
+def warm_solve(x, u, x_prev, u_prev, f_prev, d_psi_prev, forces, ring_active, d_psi, pair_idx,
+               centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid, scale,
+               axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b,
+               tol, max_it, max_rate, disp_limit, max_changes, budget):
     """
     Solve a warm step (``whole_screw.WholeScrew._warm_solve_numpy``, its reference).
 
-    Guesses in turn (only the first with an iteration budget): the prediction in nut angle
-    from the previous (x_prev, u_prev, f_prev over d_psi_prev; d_psi_prev = 0: none), secant
-    plus, with the one before (x_prev2, ... over d_psi_prev2; 0: none), the curvature term
-    (``curvature_correction``); then the previous solution (x, u, forces per ring pair [N]).
-    Each starts with the closed pairs whose predicted force stays positive plus the open
-    pairs whose rear ball is predicted faster.  Returns ``solve_active_set``'s tuple for the
-    first guess that converged or used up the budget (else the last), the summed iterations,
-    and the B2B slip speed of every candidate pair.
+    Guesses in turn (only the first with an iteration budget): the secant prediction in
+    nut angle from the previous (x_prev, u_prev, f_prev over d_psi_prev; d_psi_prev = 0:
+    none), then the previous solution (x, u, forces per ring pair [N]).  Each starts with the
+    closed pairs whose predicted force stays positive plus the open pairs whose rear ball is
+    predicted faster.  Returns ``solve_active_set``'s tuple for the first guess that
+    converged or used up the budget (else the last), the summed iterations, and the B2B slip
+    speed of every candidate pair.
     """
     n_guess = 1
     gx = np.empty((2,) + x.shape)
@@ -1220,10 +1164,6 @@ def warm_solve(x, u, x_prev, u_prev, f_prev, d_psi_prev, x_prev2, u_prev2, f_pre
             gx[0] = x + r * (x - x_prev)
             gu[0] = u + r * (u - u_prev)
             gf[0] = forces + r * (forces - f_prev)
-            if d_psi_prev2 != 0.0 and 0.0 < d_psi / d_psi_prev2 <= 4.0:
-                curvature_correction(x, u, forces, x_prev, u_prev, f_prev, x_prev2, u_prev2,
-                                     f_prev2, d_psi, d_psi_prev, d_psi_prev2, gx[0], gu[0],
-                                     gf[0])
             n_guess = 2
     gx[n_guess - 1] = x
     gu[n_guess - 1] = u

@@ -114,9 +114,8 @@ class EquilibriumSolver:
         self._solve_active_kernel(x, 0.0, np.zeros(1), centres, 1.0, 1.0, 1.0, *pair, 0)
         st = self.settings
         none = np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0)
-        kernel.warm_solve(x, np.zeros(1), x, np.zeros(1), np.zeros(2), 0.0, x, np.zeros(1),
-                          np.zeros(2), 0.0, np.zeros(2), np.zeros(2, dtype=bool), 0.0,
-                          np.zeros(1, dtype=np.int64), centres, 1.0,
+        kernel.warm_solve(x, np.zeros(1), x, np.zeros(1), np.zeros(2), 0.0, np.zeros(2),
+                          np.zeros(2, dtype=bool), 0.0, np.zeros(1, dtype=np.int64), centres, 1.0,
                           *self.kernel_constants(), 1.0, 1.0, *pair, *self.b2b.linear_terms(1.0),
                           *none, float(st.tolerance), 0, float(st.max_step_rate), 1.0, 1, -1)
         kernel.ring_projection(np.array([0.0, 0.5]), 1.0, 10.0)

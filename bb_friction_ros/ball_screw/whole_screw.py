@@ -33,10 +33,8 @@ nut.  Balls never overlap: after each advance, overlaps are removed by the L2
 projection onto non-overlapping positions (pool-adjacent-violators on the ring).  Contacts
 close and open by the exact complementarity of Eq. (61) (``solver``).
 
-Warm start: each step starts from a prediction in nut angle: the last two solutions (states
-and B2B forces) extrapolated linearly, plus, with a third, the quadratic term for the balls
-whose path is smooth there (``kernel.curvature_correction``: 12 % fewer Newton iterations
-at 1.8 deg steps, rigid; 9 % elastic).  The initial active set is the closed
+Warm start: each step starts from the secant prediction in nut angle: the last two solutions
+(states and B2B forces) are extrapolated linearly.  The initial active set is the closed
 pairs whose predicted force stays positive, plus the open pairs whose rear ball is predicted
 to be faster.  If Newton fails from there, the step retries from the plain previous
 solution.  If that fails too, it cold-starts (``ScrewModel.cold_solve``), as it also does on
@@ -169,7 +167,6 @@ class WholeScrew:
         self.ratio = np.full(self.n, self.model.ball.rolling_guess(1, 1.0)[0, 2])
         self._state = None          # (x, u, sign, load sign)
         self._prev = None           # (x, u, forces, nut-angle increment) one step before
-        self._prev2 = None          # the same, two steps before (None without _prev)
         self._active = np.zeros(self.n, dtype=bool)   # per ring pair (j, j+1)
         self._forces = np.zeros(self.n)
 
@@ -258,11 +255,11 @@ class WholeScrew:
         preload = self.model.preload_load() > 0.0
         if omega_n == 0.0 or (not preload
                               and abs(axial_load_n) <= self.config.solver.min_axial_load_n):
-            self._prev = self._prev2 = None
+            self._prev = None
             return self._zero_result(omega_n, axial_load_n, dt_s)
         if abs(axial_load_n) > self.max_axial_load_n:
             # Beyond the model's range even on average (config.validity): not solved.
-            self._prev = self._prev2 = None
+            self._prev = None
             return self._zero_result(omega_n, axial_load_n, dt_s, in_range=False)
         sign = 1.0 if omega_n > 0.0 else -1.0
         phi = self.track_azimuth()
@@ -294,7 +291,7 @@ class WholeScrew:
             sol.converged = sol.converged and free.converged
             iterations += sol.iterations
         sol.iterations = iterations
-        self._prev, self._prev2 = prev, (self._prev if prev is not None else None)
+        self._prev = prev
         return self._finish(sol, sign, omega_n, axial_load_n, theta, phi, pair_idx, rear, front,
                             t0)
 
@@ -342,20 +339,13 @@ class WholeScrew:
             up = _as_displacements(up, shape)
         else:
             xp, up, fp, dp = x, u, self._forces, 0.0
-        if self._prev2 is not None:
-            x2, u2, f2, dp2 = self._prev2
-            u2 = _as_displacements(u2, shape)
-        else:
-            x2, u2, f2, dp2 = xp, up, fp, 0.0
         path = elastic if elastic is not None else _RIGID
-        if x.shape != (self.n, 6) or xp.shape != x.shape or fp.shape != (self.n,) \
-                or x2.shape != x.shape or f2.shape != fp.shape:
+        if x.shape != (self.n, 6) or xp.shape != x.shape or fp.shape != (self.n,):
             # The kernel does not check bounds (see solver._solve_active_kernel).
-            raise ValueError(f"warm solve: state {x.shape}, previous {xp.shape} and "
-                             f"{x2.shape}, forces {fp.shape} and {f2.shape} for {self.n} balls")
+            raise ValueError(f"warm solve: state {x.shape}, previous {xp.shape}, forces "
+                             f"{fp.shape} for {self.n} balls")
         out, iterations, speed = kernel.warm_solve(
-            x, u, xp, up, fp, float(dp), x2, u2, f2, float(dp2), self._forces, self._active,
-            d_psi, pair_idx, centres,
+            x, u, xp, up, fp, float(dp), self._forces, self._active, d_psi, pair_idx, centres,
             sign, *solver.kernel_constants(), scale, axial_load_n, rear, front,
             *solver.b2b.linear_terms(sign), *path, st.tolerance, st.max_iterations,
             st.max_step_rate, solver.displacement_limit(scale), st.max_active_set_changes,
@@ -369,39 +359,22 @@ class WholeScrew:
 
     def _guesses(self, d_psi):
         """
-        Warm starts: the prediction in nut angle, then the previous solution.
+        Warm starts: the secant prediction in nut angle, then the previous solution.
 
         The states (and B2B forces) of the last two steps are extrapolated linearly in the
-        nut angle (the secant), plus the quadratic term through the step before where the
-        path is smooth (``kernel.curvature_correction``, whose reference this is: a
-        quadratic prediction for every ball made steps after contact changes take 13-27
-        iterations).  The plain previous solution is the fallback if Newton fails from the
-        prediction.  (Tried and not kept: not extrapolating balls whose contacts changed.)
+        nut angle; the plain previous solution is the fallback if Newton fails from there.
+        (Tried and not kept: a quadratic prediction, and not extrapolating balls whose
+        contacts changed; neither reduced the iterations.)
         """
         x, u = self._state[0], self._state[1]
-        f = self._forces
         out = []
         if self._prev is not None and self._prev[3] != 0.0:
             r = d_psi / self._prev[3]
             if 0.0 < r <= 4.0:
-                xp, up, fp, h1 = self._prev
-                gx, gu, gf = x + r * (x - xp), u + r * (u - up), f + r * (f - fp)
-                if self._prev2 is not None and self._prev2[3] != 0.0 \
-                        and 0.0 < d_psi / self._prev2[3] <= 4.0:
-                    x2, u2, f2, h2 = self._prev2
-                    q = d_psi * (d_psi + h1) / (h1 + h2)
-                    kept = (f > 0.0) == (fp > 0.0)
-                    kept &= (fp > 0.0) == (f2 > 0.0)
-                    cx = q * ((x - xp) / h1 - (xp - x2) / h2)
-                    smooth = kept & np.roll(kept, 1) & (
-                        np.abs(cx).max(axis=1)
-                        <= kernel.CURVATURE_LIMIT * np.abs(r * (x - xp)).max(axis=1))
-                    gx[smooth] += cx[smooth]
-                    gu = gu + q * ((u - up) / h1 - (up - u2) / h2)
-                    pair = smooth & np.roll(smooth, -1)
-                    gf[pair] += (q * ((f - fp) / h1 - (fp - f2) / h2))[pair]
-                out.append((gx, gu, gf))
-        out.append((x.copy(), u, f))
+                xp, up, fp = self._prev[:3]
+                out.append((x + r * (x - xp), u + r * (u - up),
+                            self._forces + r * (self._forces - fp)))
+        out.append((x.copy(), u, self._forces))
         return out
 
     def _finish(self, sol, sign, omega_n, axial_load_n, theta, phi, pair_idx, rear, front, t0):
