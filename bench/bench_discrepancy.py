@@ -34,6 +34,7 @@ to the hidden physics".
 import argparse
 from collections import Counter
 import dataclasses
+import math
 import os
 import time
 
@@ -648,18 +649,32 @@ def physical_section(args):
         n_fit = int(np.floor((1.0 - settings.holdout_fraction) * len(rec)))
         effect_rms = float(np.sqrt(np.mean(phys[:n_fit] ** 2)))
         noise_std = float(np.std(noise))
+        # the evidence the hidden change carries against white noise of the true std: the
+        # log-likelihood ratio sum d^2 / s^2 (fit part), against what a parameter must pay
+        # in the penalised BIC (ln n' + bic_threshold, n' = n / tau)
+        evidence = float(np.sum(phys[:n_fit] ** 2)) / noise_std ** 2
+        # ... and what is left of it beside the hidden empirical terms' own columns (their
+        # amplitudes free): a change those columns can copy carries no evidence of its own
+        evidence_beside = beside_hidden(phys[:n_fit], rec, n_fit, terms, settings) / \
+            noise_std ** 2
+        n_eff = n_fit / max(a.noise.tau, 1.0)
+        price = math.log(n_eff) + settings.bic_threshold
         row = {"hidden": kind, "true": true, "extra": terms.names, "named": got,
                "value": choice.value if choice else None, "terms": a.terms.names,
                "runs": a.physical.runs + a.physical.validation_runs, "wall": wall,
                "rmse_ok": ok_rmse, "reducible": reducible,
                "ambiguous": [x["pair"] for x in a.ambiguities if not x["separated"]],
-               "snr": effect_rms / noise_std}
+               "snr": effect_rms / noise_std, "evidence": evidence, "price": price,
+               "evidence_beside": evidence_beside,
+               "phys_wall": a.physical.wall_s}
         rows.append(row)
         print(f"  hidden {kind or '(empirical only)'} {'' if true is None else f'{true:.4g}'}"
               f" + {', '.join(terms.names) or '-'}: named {got or '-'}"
               f"{'' if choice is None else f' {choice.value:.4g}'} + "
               f"{', '.join(a.terms.names) or '-'}; physical effect rms / noise "
-              f"{row['snr']:.2f}; {row['runs']} runs, {wall:.1f} s; "
+              f"{row['snr']:.2f} (evidence sum d^2/s^2 {evidence:.0f}, beside the hidden "
+              f"terms' columns {evidence_beside:.0f}; price {price:.1f}); {row['runs']} "
+              f"runs, {wall:.1f} s ({a.physical.wall_s:.1f} s in model runs); "
               f"held-out reducible {reducible * 1e3:.2f} mN m, 80 % removed: {ok_rmse}",
               flush=True)
     phys = [r for r in rows if r["hidden"]]
@@ -670,6 +685,10 @@ def physical_section(args):
     seen = [r for r in phys if r["snr"] >= 1.0]
     print(f"named where the hidden change's rms (fit part) is at least the noise std: "
           f"{sum(r['named'] == r['hidden'] for r in seen)}/{len(seen)}")
+    payable = [r for r in phys if r["evidence_beside"] >= r["price"]]
+    print(f"named where the hidden change's evidence (sum d^2/s^2, fit part, beside the "
+          f"hidden terms' columns) exceeds the price of a parameter (ln n' + bic_threshold):"
+          f" {sum(r['named'] == r['hidden'] for r in payable)}/{len(payable)}")
     pair = [r for r in phys if r["named"] != r["hidden"]
             and any(r["hidden"] in p for p in r["ambiguous"])]
     print(f"not named but reported as one ambiguous pair with its twin: {len(pair)}")
@@ -696,10 +715,30 @@ def physical_section(args):
     print(f"held-out: >= 80 % of the reducible gap removed in "
           f"{sum(r['rmse_ok'] for r in judged)}/{len(judged)} cases with a reducible gap")
     print(f"model runs per analysis: median {np.median([r['runs'] for r in rows]):.0f}; "
-          f"wall per analysis median {np.median([r['wall'] for r in rows]):.1f} s "
+          f"wall per analysis median {np.median([r['wall'] for r in rows]):.1f} s, of it "
+          f"in model runs {np.median([r['phys_wall'] for r in rows]):.1f} s "
           f"(load {os.getloadavg()[0]:.1f})")
     if not args.no_timing:
         physical_timing(cache)
+
+
+def beside_hidden(d, rec, n_fit, terms, settings):
+    """Return |M d|^2: ``d`` (fit part) less its projection on the hidden terms' columns."""
+    from bb_friction_ros.discrepancy.data import inputs_of
+    from bb_friction_ros.discrepancy.selection import candidates
+    if not len(terms):
+        return float(d @ d)
+    mask = np.arange(len(rec)) < n_fit
+    x = inputs_of(rec, mask)
+    cands = {c.name: c for c in candidates(x, settings)}
+    cols = []
+    for t in terms.terms:
+        nl = getattr(t.params, t.kind.nonlinear) if t.kind.nonlinear else None
+        cols.append(cands[t.name].columns(x, nl))
+    a = np.hstack(cols)
+    coef, *_ = np.linalg.lstsq(a, d, rcond=None)
+    e = d - a @ coef
+    return float(e @ e)
 
 
 def physical_timing(cache):
@@ -729,7 +768,8 @@ def physical_timing(cache):
         print(f"  with physical candidates, {'local' if workers == 1 else 'Dask LocalCluster'}"
               f" ({workers} worker{'s' if workers > 1 else ''}): {wall:.1f} s "
               f"(goal <= 60 s), {a.physical.runs} model runs taking "
-              f"{a.physical.wall_s:.1f} s; named {c.kind.name if c else '-'} "
+              f"{a.physical.wall_s:.1f} s, {a.physical.selections} empirical selections and "
+              f"the rest {wall - a.physical.wall_s:.1f} s; named {c.kind.name if c else '-'} "
               f"{'' if c is None else f'{c.value:.3g}'} (hidden 2.5); ratio to empirical "
               f"only {wall / plain:.1f}x; load {os.getloadavg()[0]:.1f}", flush=True)
 

@@ -15,10 +15,13 @@ A trial value is a model run over the recording: the replay path's ``ModelRunner
 ``WholeScrew`` of the base config with the one value changed.  Its column is the change of
 the physics torque, d(p) = T(p) - T(p0), with coefficient 1 (not a free amplitude: the
 parameter itself is what is fitted).  The physical candidate then competes with the empirical
-terms under the same BIC and cross-validation: for a trial value the empirical best-subset
-selection runs on r - d(p), and the physical parameter counts as one more parameter (and
-one more ``bic_threshold``) in the penalised BIC.  "None" is a valid answer, and empirical
-terms may be fitted on top of the physical change.
+terms under the same BIC and cross-validation: at a candidate's best value the empirical
+best-subset selection runs on r - d(p), and the physical parameter counts as one more
+parameter (and one more ``bic_threshold``) in the penalised BIC.  "None" is a valid answer,
+and empirical terms may be fitted on top of the physical change.  Between trials only the
+model column changes, so a trial is scored by its profile (the RSS of r - d(p) with the
+empirical terms held, by projection), and the selection runs once per candidate refined,
+not once per trial (``select_with_physics``).
 
 Cost (each trial is a model run): the runs only visit the samples at which the runner steps
 the model (``ModelRunner`` steps on a schedule of input stamps and direction changes that
@@ -26,9 +29,12 @@ does not depend on the parameters; every other sample holds the last step's torq
 trial costs the model's steps, not the recording's samples.  The schedule comes from one full
 run of the base config through the runner (also the reference T(p0)).  A coarse bracket per
 candidate (``PhysicalSettings``) runs first, in parallel on a Dask LocalCluster when
-``workers`` > 1; the best candidate is refined by successive parabolic interpolation of its
-profile (a model run per step, at most ``refine_runs``); the 95 % interval is read from the
-profile's parabola, where n' ln(RSS/n) rises by 3.84 (chi-square, one parameter).
+``workers`` > 1; a candidate whose bracket change, at its best scale, could beat "none" is
+refined (``_next_value``: the fitted scale of a run's change says how large the change should
+be, and the value giving that size is interpolated between the runs: robust at the B2B
+contact's onset, where a parabola through the RSS is not), a model run per step, at most
+``refine_runs``; the 95 % interval is read from the profile's parabola, where n' ln(RSS/n)
+rises by 3.84 (chi-square, one parameter).
 
 Identifiability, said out loud (``identifiability``): a change of mu scales the whole model
 torque, which is nearly the ``load_dependent`` column (k |W| sign w) when the torque is
@@ -82,11 +88,11 @@ class PhysicalSettings:
                                         "config's)", lo=2, hi=50)
     preload_resolution_um: float = field(0.01, "um", "refinement stops when the parabola "
                                          "moves the oversize by less", lo=0.0, lo_open=True)
-    refine_runs: int = field(3, "1", "model runs of the parabolic refinement per candidate "
-                             "refined", lo=0, hi=50)
-    refine_candidates: int = field(2, "1", "candidates refined at most: the best, and the "
-                                   "next ones whose best coarse trial beats no physical "
-                                   "change", lo=1, hi=3)
+    refine_runs: int = field(3, "1", "model runs of the refinement per candidate refined "
+                             "(_next_value)", lo=0, hi=50)
+    refine_candidates: int = field(2, "1", "candidates refined at most: those whose bracket "
+                                   "run's change, at its best scale, beats no physical "
+                                   "change, best first", lo=1, hi=3)
     max_nonconverged_fraction: float = field(0.01, "1", "a trial whose model steps fail to "
                                              "converge more often than this is not used",
                                              lo=0.0, hi=1.0)
@@ -407,10 +413,12 @@ class PhysicalSearch:
     validation_runs: int = 0
     validation_wall_s: float = 0.0
     notes: list = dataclasses.field(default_factory=list)
+    selections: int = 0          # empirical selections run (none, and per candidate refined)
 
     def as_dict(self):
         """Return summary.json → ``physical``."""
         return {"model_runs": self.runs, "model_run_wall_s": self.wall_s,
+                "selections": self.selections,
                 "workers": self.workers,
                 "chosen": self.chosen.effect() if self.chosen else None,
                 "penalised_bic_none": self.none_score,
@@ -424,15 +432,67 @@ def _penalised(trace, extra_params, settings, tau, n):
     return row["penalised_bic"] + extra_params * (math.log(n_eff) + settings.bic_threshold)
 
 
-def _profile(members, x, r, tau):
+class _Profile:
     """
-    Return the RSS of ``members`` fitted to ``r``: the profile of a physical value.
+    The profile of a physical value: the RSS of r - d(p) with empirical terms held.
 
-    RSS, not its logarithm: a parameter whose column is nearly linear in it (mu) has an RSS
-    quadratic in it, which the refinement's parabola then fits exactly.
+    The held terms' columns are fitted by projection (an orthonormal basis of their span,
+    from one SVD), so a trial costs a few dot products over the samples, not a selection.
+    ``amplitude``: the least-squares scale a of a trial's change d(p) beside the held terms;
+    a = 1 at the profile's minimum when the change keeps its shape, and a tells how much
+    larger or smaller the change should be (``_next_value``).
     """
-    from bb_friction_ros.discrepancy.selection import fit
-    return fit(members, x, r, None, tau).rss
+
+    def __init__(self, members, x, r, tau, settings):
+        self.members = tuple(members)
+        n = r.size
+        cols = [c.columns(x, nl) for c, nl in self.members]
+        a = np.hstack(cols) if cols else np.zeros((n, 0))
+        if a.shape[1]:
+            u, sv, _ = np.linalg.svd(a, full_matrices=False)
+            # rank-deficient designs (offset and coulomb_asymmetry without standstill
+            # samples): only the directions the columns span are projected out
+            self.q = u[:, sv > sv[0] * 1e-10] if sv[0] > 0 else u[:, :0]
+        else:
+            self.q = a
+        self.mr = self._proj(r)
+        self.n = n
+        n_eff = n / max(tau, 1.0)
+        k = sum(c.n_params for c, _ in self.members)
+        # as selection.select's penalised BIC, plus the physical parameter (_penalised)
+        self.penalty = k * math.log(n_eff) + settings.bic_threshold * len(self.members) + \
+            math.log(n_eff) + settings.bic_threshold
+        self.n_eff = n_eff
+
+    def _proj(self, v):
+        return v - self.q @ (self.q.T @ v) if self.q.shape[1] else v
+
+    def rss(self, d):
+        """Return the RSS of the held terms fitted to r - d."""
+        e = self.mr - self._proj(d)
+        return float(e @ e)
+
+    def score(self, rss):
+        """Return the penalised BIC of an RSS (held terms and the physical value counted)."""
+        return self.n_eff * math.log(max(rss, 1e-300) / self.n) + self.penalty
+
+    def amplitude(self, d):
+        """Return (a, ||M d||, RSS at the free amplitude): the change's best scale."""
+        md = self._proj(d)
+        dd = float(md @ md)
+        if not dd > 0.0:
+            return math.nan, 0.0, float(self.mr @ self.mr)
+        a = float(md @ self.mr) / dd
+        return a, math.sqrt(dd), float(self.mr @ self.mr) - a * a * dd
+
+
+@dataclasses.dataclass
+class _Point:
+    """A model run of one candidate: its value, run and change at the fit samples."""
+
+    value: float
+    run: TrialRun
+    d_fit: np.ndarray
 
 
 def _vertex(p, y):
@@ -457,6 +517,88 @@ def _three_around_best(points):
     return pts[k - 1:k + 2], pts[k]
 
 
+def _next_value(kind, points, base_value, profile, ps):
+    """
+    Return the next trial value of ``kind`` from the runs so far, or None (converged).
+
+    The run whose fitted amplitude a is nearest 1 (a > 0) says how large the change should
+    be: a times its size.  The value giving that size is interpolated between the runs on
+    the same side of the config's value (the size of the change against the value, from 0
+    at the config's value; its logarithm between two non-zero sizes: at an onset such as
+    the B2B contact's the size grows by orders of magnitude between bracket points), or
+    stepped beyond the farthest run by its spacing.  A parabola through the profile could
+    not do this at an onset: the RSS is flat, then steep.
+    """
+    best = None
+    for pt in points:
+        a, size, _ = profile.amplitude(pt.d_fit)
+        if a > 0.0 and size > 0.0 and (best is None or abs(math.log(a)) < best[0]):
+            best = (abs(math.log(a)), a * size, pt.value)
+    if best is None:
+        return None
+    _, target, v = best
+    side = 1.0 if v > base_value else -1.0
+    same = sorted((side * (pt.value - base_value), profile.amplitude(pt.d_fit)[1])
+                  for pt in points if side * (pt.value - base_value) > 0.0)
+    curve = [(0.0, 0.0)] + same
+    # the size of the change should grow with the distance from the config's value; where
+    # it does not (a non-monotone stretch), the first crossing is taken
+    new = None
+    for (p0, s0), (p1, s1) in zip(curve[:-1], curve[1:]):
+        if s0 <= target <= s1 and s1 > s0:
+            if s0 > 0.0:
+                f = math.log(target / s0) / math.log(s1 / s0)
+            else:
+                f = target / s1
+            new = p0 + f * (p1 - p0)
+            break
+    if new is None:
+        if target > curve[-1][1]:
+            step = curve[-1][0] - curve[-2][0]
+            new = curve[-1][0] + step
+        else:
+            return None
+    new = base_value + side * new
+    lo, hi = kind.limits()
+    new = min(max(new, lo), hi)
+    if min(abs(new - pt.value) for pt in points + [_Point(base_value, None, None)]) < \
+            kind.resolution(ps):
+        return None
+    return new
+
+
+def _interval(best_value, points, base_value, profile):
+    """
+    Return the 95 % interval of the value: where -2 ln L rises by 3.84 (chi-square, 1).
+
+    The profile (the RSS, the chosen empirical terms held) is the parabola through the best
+    run and its neighbours in value; (None, None) where the runs do not bracket it.
+    """
+    pts = [(base_value, profile.rss(np.zeros_like(profile.mr)))]
+    pts += [(pt.value, profile.rss(pt.d_fit)) for pt in points]
+    three, _ = _three_around_best(pts)
+    if three is None:
+        return (None, None)
+    v, a = _vertex([p for p, _ in three], [y for _, y in three])
+    if v is None:
+        return (None, None)
+    # -2 ln L = n' ln(RSS/n) rises by n' dRSS / RSS_min near the minimum
+    rss_min = max(min(y for _, y in three), 1e-300)
+    half = math.sqrt(CHI2_1_95 * rss_min / (profile.n_eff * a))
+    return (best_value - half, best_value + half)
+
+
+def _held(kind, outcome):
+    """
+    Return the empirical terms held while the value of ``kind`` is profiled.
+
+    The outcome's chosen terms without the physical candidate's twin (``TWINS``): held, the
+    twin would absorb the parameter's own change and flatten its profile (mu and
+    load_dependent are nearly one column).
+    """
+    return tuple(m for m in outcome.members if m[0].name != TWINS[kind.name])
+
+
 def select_with_physics(physics, rec_all, ok, fit_mask, r, x_fit, settings, skip, fixed, tau):
     """
     Select as selection.select does, with the physical candidates beside the library.
@@ -465,21 +607,37 @@ def select_with_physics(physics, rec_all, ok, fit_mask, r, x_fit, settings, skip
     samples (``r``, ``fit_mask`` are over them).  Return (TermSet, trace, SelectionContext,
     PhysicalSearch); the PhysicalSearch's ``chosen`` is None when no physical effect is
     chosen (the TermSet is then exactly selection.select's).
+
+    1. The empirical selection on r ("none": no physical change).
+    2. The bracket: a model run per trial value.  Each is scored by its profile (the RSS of
+       r - d(p) with none's terms held, its twin left out: ``_Profile``), not by a selection
+       of its own: only the model column changes between trials.
+    3. A candidate is refined only if its change, at the best scale (the free amplitude of
+       a bracket run), could beat "none": the bound no value of the same shape exceeds.
+       At most ``refine_candidates`` are refined, in rounds of one model run each (a batch
+       on the Dask cluster), at ``_next_value``; after the first round the empirical
+       selection is re-run at the candidate's best value and its terms are held instead.
+    4. The empirical selection at each refined candidate's best value decides, under the
+       penalised BIC (the parameter counted) and the blocked cross-validation, against
+       "none".
     """
     from bb_friction_ros.discrepancy.selection import cv_rmse, select
     ps = physics.settings
     r_fit = r[fit_mask]
     n_fit = r_fit.size
 
-    def outcome(kind, run, delta):
-        d_fit = delta[fit_mask] if delta is not None else 0.0
+    count = [0]
+
+    def outcome(kind, pt):
+        count[0] += 1
+        d_fit = pt.d_fit if pt is not None else 0.0
         terms, trace, ctx = select(x_fit, r_fit - d_fit, settings, skip=skip, fixed=fixed,
                                    tau=tau)
         score = _penalised(trace, 0 if kind is None else 1, settings, tau, n_fit)
-        return Outcome(kind, None if run is None else run.value, terms, trace, ctx, score,
-                       run, None if delta is None else d_fit)
+        return Outcome(kind, None if pt is None else pt.value, terms, trace, ctx, score,
+                       None if pt is None else pt.run, None if pt is None else d_fit)
 
-    none = outcome(None, None, None)
+    none = outcome(None, None)
     runner = TrialRunner(rec_all, physics.config_path, physics.runner_args, ps.workers)
     search = PhysicalSearch(workers=ps.workers, base=runner.base, usable=ok,
                             none_score=none.score)
@@ -488,44 +646,79 @@ def select_with_physics(physics, rec_all, ok, fit_mask, r, x_fit, settings, skip
         cfg = load_model_file(physics.config_path)[0]
         base_t = runner.base.total_nm[ok]
         bases = {k.name: k.base_value(cfg) for k in PHYSICAL.values()}
-        tried = [(k, v) for k in PHYSICAL.values() for v in k.bracket(bases[k.name], ps)]
-        runs = runner.run(tried)
-        outcomes = {name: [] for name in PHYSICAL}
+        points = {name: [] for name in PHYSICAL}
+        profiles = {k.name: _Profile(_held(k, none), x_fit, r_fit, tau, settings)
+                    for k in PHYSICAL.values()}
+        rows = {}
 
         def consider(kind, run):
             conv = run.converged[ok]
             bad = float(np.mean(~conv | ~np.isfinite(run.total_nm[ok])))
             row = {"candidate": kind.name, "param": kind.param, "value": run.value,
-                   "nonconverged_fraction": bad}
+                   "nonconverged_fraction": bad, "selection": False}
+            search.trials.append(row)
             if bad > ps.max_nonconverged_fraction:
                 row.update(penalised_bic=None, terms=None,
                            note="not used: the model did not converge")
-                search.trials.append(row)
-                return None
-            delta = np.nan_to_num(run.total_nm[ok] - base_t)
-            o = outcome(kind, run, delta)
-            row.update(penalised_bic=o.score, terms=list(o.terms.names))
-            search.trials.append(row)
-            outcomes[kind.name].append(o)
-            return o
+                return
+            pt = _Point(run.value, run, np.nan_to_num(run.total_nm[ok] - base_t)[fit_mask])
+            prof = profiles[kind.name]
+            row.update(penalised_bic=prof.score(prof.rss(pt.d_fit)),
+                       terms=[c.name for c, _ in prof.members])
+            rows[(kind.name, pt.value)] = row
+            points[kind.name].append(pt)
 
-        for (kind, _), run in zip(tried, runs):
+        tried = [(k, v) for k in PHYSICAL.values() for v in k.bracket(bases[k.name], ps)]
+        for (kind, _), run in zip(tried, runner.run(tried)):
             consider(kind, run)
-        # the best trial of each candidate, best first; the first is refined, and every
-        # other that beats "none" at its coarse trial up to ``refine_candidates`` (a
-        # parameter with a threshold, such as the preload, can lose on a coarse grid)
-        tops = sorted((min(os_, key=lambda o: o.score) for os_ in outcomes.values() if os_),
-                      key=lambda o: o.score)
-        if not tops:
+
+        def bound(name):
+            # the best penalised BIC any scale of a run's change reaches (held terms fitted)
+            prof = profiles[name]
+            free = [prof.amplitude(pt.d_fit) for pt in points[name]]
+            return min((prof.score(rss) for a, _, rss in free if a > 0.0), default=math.inf)
+
+        bounds = {name: bound(name) for name in PHYSICAL}
+        active = sorted((n for n in PHYSICAL if bounds[n] < none.score),
+                        key=bounds.get)[:ps.refine_candidates]
+
+        def best_of(name):
+            prof = profiles[name]
+            return min(points[name], key=lambda pt: prof.rss(pt.d_fit))
+
+        selected = {}
+        for step in range(ps.refine_runs):
+            batch = []
+            for name in active:
+                v = _next_value(PHYSICAL[name], points[name], bases[name], profiles[name], ps)
+                if v is not None:
+                    batch.append((PHYSICAL[name], v))
+            if not batch:
+                break
+            for (kind, _), run in zip(batch, runner.run(batch)):
+                consider(kind, run)
+            if step == 0:
+                # the empirical terms at the best value so far: held from now on
+                for name in active:
+                    pt = best_of(name)
+                    o = outcome(PHYSICAL[name], pt)
+                    selected[(name, pt.value)] = o
+                    profiles[name] = _Profile(_held(PHYSICAL[name], o), x_fit, r_fit, tau,
+                                              settings)
+        finals = []
+        for name in active:
+            pt = best_of(name)
+            o = selected.get((name, pt.value)) or outcome(PHYSICAL[name], pt)
+            row = rows[(name, pt.value)]
+            row.update(penalised_bic=o.score, terms=list(o.terms.names), selection=True)
+            finals.append(o)
+        if not finals:
+            search.identifiability = _unchosen_twins(bounds, points, none, settings)
             return none.terms, none.trace, none.ctx, search
-        finalists = [o for i, o in enumerate(tops[:ps.refine_candidates])
-                     if i == 0 or o.score < none.score]
-        refined = [_refine(o.kind, o, outcomes[o.kind.name], bases[o.kind.name], runner,
-                           consider, x_fit, r_fit, tau, ps, none) for o in finalists]
-        best = min(refined, key=lambda o: o.score)
+        best = min(finals, key=lambda o: o.score)
         kind = best.kind
-        interval = _interval(kind, best, outcomes[kind.name], bases[kind.name], x_fit, r_fit,
-                             tau, none)
+        interval = _interval(best.value, points[kind.name], bases[kind.name],
+                             _Profile(_held(kind, best), x_fit, r_fit, tau, settings))
         if interval[0] is None:
             # the best value is at the edge of what was tried: not a minimum of its profile
             # (a parameter the bracket did not resolve, or another effect it stands in for)
@@ -542,84 +735,13 @@ def select_with_physics(physics, rec_all, ok, fit_mask, r, x_fit, settings, skip
                                                      settings, tau, skip, fixed)
             chosen = best
         else:
-            search.identifiability = _unchosen_twins(outcomes, none, settings)
+            search.identifiability = _unchosen_twins(bounds, points, none, settings)
             chosen = none
     finally:
         runner.close()
         search.runs, search.wall_s = runner.runs, runner.wall_s
+        search.selections = count[0]
     return chosen.terms, chosen.trace, chosen.ctx, search
-
-
-def _held(kind, outcome):
-    """
-    Return the empirical terms held while the value of ``kind`` is profiled.
-
-    The outcome's chosen terms without the physical candidate's twin (``TWINS``): held, the
-    twin would absorb the parameter's own change and flatten its profile (mu and
-    load_dependent are nearly one column).
-    """
-    return tuple(m for m in outcome.members if m[0].name != TWINS[kind.name])
-
-
-def _refine(kind, best, tried, base_value, runner, consider, x, r, tau, ps, none):
-    """
-    Successive parabolic interpolation of the profile of ``kind``'s value (model runs).
-
-    The profile is the RSS with the empirical terms chosen at the best bracket point held
-    (its twin left out, ``_held``); each step runs the model at the parabola's vertex
-    through the best three points.
-    Return the best Outcome after the runs (its empirical terms re-selected).
-    """
-    members = _held(kind, best)
-    lo, hi = kind.limits()
-    points = {base_value: _profile(members, x, r, tau)}
-    for o in tried:
-        points[o.value] = _profile(members, x, r - o.delta_fit, tau)
-    for _ in range(ps.refine_runs):
-        three, top = _three_around_best(list(points.items()))
-        if three is None:
-            # the best is at an edge of what was tried: step beyond it by the last spacing
-            vals = sorted(points)
-            k = vals.index(top[0])
-            step = (vals[1] - vals[0]) if k == 0 else (vals[-1] - vals[-2])
-            new = top[0] - step if k == 0 else top[0] + step
-        else:
-            v, _ = _vertex([p for p, _ in three], [y for _, y in three])
-            if v is None:
-                break
-            new = min(max(v, three[0][0]), three[2][0])
-        new = min(max(new, lo), hi)
-        if min(abs(new - p) for p in points) < kind.resolution(ps):
-            break
-        run = runner.run([(kind, new)])[0]
-        o = consider(kind, run)
-        if o is None:
-            break
-        points[new] = _profile(members, x, r - o.delta_fit, tau)
-    return min(tried, key=lambda o: o.score)
-
-
-def _interval(kind, best, tried, base_value, x, r, tau, none):
-    """
-    Return the 95 % interval of the value: where -2 ln L rises by 3.84 (chi-square, 1).
-
-    The profile (the RSS, the chosen empirical terms held) is the parabola through the best
-    trial and its neighbours in value; (None, None) where the trials do not bracket it.
-    """
-    members = _held(kind, best)
-    points = [(base_value, _profile(members, x, r, tau))]
-    points += [(o.value, _profile(members, x, r - o.delta_fit, tau)) for o in tried]
-    three, top = _three_around_best(points)
-    if three is None:
-        return (None, None)
-    v, a = _vertex([p for p, _ in three], [y for _, y in three])
-    if v is None:
-        return (None, None)
-    # -2 ln L = n' ln(RSS/n) rises by n' dRSS / RSS_min near the minimum
-    n_eff = r.size / max(tau, 1.0)
-    rss_min = max(min(y for _, y in three), 1e-300)
-    half = math.sqrt(CHI2_1_95 * rss_min / (n_eff * a))
-    return (best.value - half, best.value + half)
 
 
 def identifiability(choice, best, none, x, r, settings, tau, skip, fixed):
@@ -662,21 +784,27 @@ def identifiability(choice, best, none, x, r, settings, tau, skip, fixed):
     return out
 
 
-def _unchosen_twins(outcomes, none, settings):
-    """When no physical effect is chosen, name a physical twin the data cannot exclude."""
+def _unchosen_twins(bounds, points, none, settings):
+    """
+    When no physical effect is chosen, name a physical twin the data cannot exclude.
+
+    ``bounds``: each candidate's best penalised BIC at the free scale of a run's change (an
+    optimistic bound); within ``bic_threshold`` of the chosen empirical model, the twin term
+    and the parameter are one ambiguous effect.
+    """
     out = []
     for name, twin in TWINS.items():
-        if twin not in none.terms.names or not outcomes[name]:
+        if twin not in none.terms.names or not points[name] or not math.isfinite(bounds[name]):
             continue
-        best = min(outcomes[name], key=lambda o: o.score)
-        gap = best.score - none.score
+        gap = bounds[name] - none.score
         if gap < settings.bic_threshold:
             out.append({"pair": [twin, name], "chosen": twin, "bic_difference": gap,
                         "separated": False,
-                        "statement": f"{twin} and {name} ({best.value:.4g}) are one "
-                                     f"ambiguous effect here (penalised BIC difference "
-                                     f"{gap:.1f} < {settings.bic_threshold}); {twin} fitted "
-                                     "better and was kept"})
+                        "statement": f"{twin} and {name} are one ambiguous effect here (a "
+                                     f"change of {PHYSICAL[name].param} of the model's shape "
+                                     f"comes within a penalised BIC of {gap:.1f} < "
+                                     f"{settings.bic_threshold}); {twin} fitted better and "
+                                     "was kept"})
     return out
 
 
@@ -887,11 +1015,14 @@ def report_lines(a, summary):
               f"a bracket per candidate, the refinement) in {p['model_run_wall_s']:.1f} s "
               f"on {p['workers']} worker(s); penalised BIC of the empirical terms alone: "
               f"{p['penalised_bic_none']:.1f}.", "",
+              "Each trial is scored with the empirical terms held (its profile); where "
+              "marked *, the empirical selection was re-run at that value.", "",
               "| candidate | value | penalised BIC (1 parameter counted) | terms on top |",
               "|---|---|---|---|"]
     for t in p["trials"]:
         bic = "-" if t["penalised_bic"] is None else f"{t['penalised_bic']:.1f}"
-        terms = t.get("note") or (", ".join(t["terms"]) or "(none)")
+        terms = t.get("note") or (", ".join(t["terms"]) or "(none)") + \
+            (" *" if t.get("selection") else "")
         lines.append(f"| `{t['candidate']}` | {t['param']} = {t['value']:.4g} | {bic} | "
                      f"{terms} |")
     return lines

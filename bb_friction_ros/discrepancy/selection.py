@@ -11,11 +11,12 @@ can trap the answer; ``Gram`` makes each fit a few small solves, independent of 
 samples.  For each size m the subset of lowest BIC = n' ln(RSS/n) + k ln n' (k = amplitudes
 + profiled parameters; n' = n / tau, the effective samples of correlated noise) is kept,
 provided its amplitudes have their physical sign (a viscous, seal or Stribeck drag is >= 0)
-and lie in their validated range.  The size
-chosen minimises BIC + ``bic_threshold`` m: every term must bring strong evidence, not just
-any improvement.  A larger model must also lower the RMSE of a blocked K-fold
-cross-validation (contiguous time blocks) against the next smaller choice, or the smaller one
-is kept.  The empty model is a valid answer: clean data selects nothing.
+and lie in their validated range.  The size chosen minimises BIC + ``bic_threshold`` m:
+every term must bring strong evidence, not just any improvement (without a model of the
+drive the rigid-body terms need only ``rigid_body_bic_threshold``: ``penalty``).  A larger
+model must also lower the RMSE of a blocked K-fold cross-validation (contiguous time blocks)
+against the next smaller choice, or the smaller one is kept.  The empty model is a valid
+answer: clean data selects nothing.
 """
 
 import dataclasses
