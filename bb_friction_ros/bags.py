@@ -865,6 +865,7 @@ class Block:
         n = len(items)
         self.src, self.items, self.kinds = src, items, []
         self._counts_before = counts_before
+        self._numbers = None
         self.fast = np.zeros(n, dtype=bool)
         self.sec = np.zeros(n, dtype=np.int64)
         self.nanosec = np.zeros(n, dtype=np.int64)
@@ -884,9 +885,15 @@ class Block:
     def event(self, i):
         """Return item ``i`` of an input topic as ``BagInput.messages`` decodes it."""
         conn, log_ns, raw = self.items[i]
-        # the message's number on its topic, for the error naming a damaged one
-        number = self._counts_before[conn.topic] + 1 + sum(
-            c.topic == conn.topic for c, _, _ in self.items[:i])
+        if self._numbers is None:
+            # each message's number on its topic, for the error naming a damaged one
+            # (counted once per block: a bag of odd messages takes this path for each)
+            seen = Counter(self._counts_before)
+            self._numbers = []
+            for c, _, _ in self.items:
+                seen[c.topic] += 1
+                self._numbers.append(seen[c.topic])
+        number = self._numbers[i]
         read = self.src.counts[conn.topic]
         self.src.counts[conn.topic] = number
         try:

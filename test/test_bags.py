@@ -384,3 +384,32 @@ def test_blocks_decode_what_messages_decodes(tmp_path, storage):
             assert dict(src.counts) == want_counts and dict(src.joint_names) == want_names
             # every regular nut_state, and most loads and torques, read with numpy
             assert fast >= regular + 0.3 * len(messages), (fast, regular)
+
+
+def test_a_damaged_message_is_named_alike_by_blocks_and_messages(tmp_path):
+    """Block.event names a message it cannot decode as messages() does: its number on the
+    topic and its log time (a block starts mid-topic and holds other topics first)."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from bb_friction_ros.bags import _typestore, BagInput
+    store = _typestore()
+    good = _joint_state_cdr(store, ("nut_joint",), (0.1,), (6.0,), ())
+    with Writer(tmp_path / "bag", version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        nut = writer.add_connection("/nut_state", "sensor_msgs/msg/JointState",
+                                    typestore=store)
+        load = writer.add_connection("/axial_load", "geometry_msgs/msg/WrenchStamped",
+                                     typestore=store)
+        for k in range(40):
+            writer.write(load, 2 * k, bytes(4))                  # undecodable as well
+            writer.write(nut, 2 * k + 1, good if k != 23 else good[:11])
+    errors = []
+    for read in (lambda src: [ev for *_, ev in src.messages()],
+                 lambda src: [b.event(i) for b in src.blocks("nut_joint", size=7)
+                              for i in range(len(b.items))
+                              if b.kinds[i] == "nut_state" and not b.fast[i]]):
+        with BagInput(tmp_path / "bag") as src:
+            src.resolved.pop("/axial_load")                 # only the nut_state damage
+            with pytest.raises(BagError) as err:
+                read(src)
+            errors.append(str(err.value))
+    assert errors[0] == errors[1] and "damaged message 24 on /nut_state" in errors[0] \
+        and "log time 47 ns" in errors[0], errors

@@ -17,7 +17,7 @@ from bb_friction_ros.live import (ERROR, LiveSchedule, OK, Outputs, process_age_
                                   process_cpu_s, WARN)
 from bb_friction_ros.node_parameters import NodeParameters
 from bb_friction_ros.replay import run_events
-from bb_friction_ros.runner import build_runner, InputAssembler, ModelRunner
+from bb_friction_ros.runner import build_runner, InputAssembler, InputSample, ModelRunner
 from recordings import short_recording
 from test_node_feedforward_sign import SlowScrew
 
@@ -144,6 +144,34 @@ def test_one_profile_per_model_period_of_motion():
     for (a, *_), (b, *_) in zip(rec.profiles, rec.profiles[1:]):
         assert abs(b.nut_angle_rad - a.nut_angle_rad) >= 2 * step - 1e-9 \
             or b.nut_velocity_rad_s != a.nut_velocity_rad_s
+
+
+def test_no_profile_while_the_schedule_is_coarser():
+    """A model that could not keep its steps (scale > 1) starts no look-ahead profile."""
+    import math
+    live, rec = schedule()
+    j = ("nut_joint",)
+    w = 2 * math.pi
+    events = [Event("nut_state", 1e-3 * k, j, (w * 1e-3 * k,), (w,)) for k in range(100)]
+    try:
+        feed(live, [Event("axial_load", 0.0, value=1500.0)] + events[:1])
+        first = live.values(advance=False)[0]       # the first step's profile
+        # a step the live model could not take: the schedule turns coarser (2 x 1.8 deg)
+        live.runner.process(InputSample(events[10].stamp_s, events[10].positions[0], w,
+                                        1500.0), allow_step=False)
+        assert live.runner.scale == 2.0
+        feed(live, events[11:50])
+        coarse = live.values(advance=False)[0]
+        live.runner.scale = 1.0
+        feed(live, events[50:])
+    finally:
+        live.stop()
+    values = live.values()[0]
+    assert coarse["model_steps"] >= 5
+    started = ("profiles", "profiles_abandoned")
+    assert first["profiles"] == 1
+    assert sum(coarse[k] for k in started) == sum(first[k] for k in started)
+    assert values["profiles"] > 0
 
 
 def test_answers_older_than_the_limit_are_shed_and_counted():
