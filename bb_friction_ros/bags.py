@@ -789,24 +789,30 @@ def fast_joint_state(raw):
         if raw[:2] != b"\x00\x01":
             return None
         buf = bytes(raw[4:])
-        sec, nanosec, pos = _cdr_header(buf)
-        pos = (pos + 3) & -4
-        (count,) = _U32(buf, pos)
-        pos += 4
-        if count > len(buf):
-            return None
-        names = []
-        for _ in range(count):
-            name, pos = _cdr_string(buf, pos)
-            names.append(name)
+        sec, nanosec, names, pos = _joint_state_names(buf)
         positions, pos = _cdr_float64s(buf, pos)
         velocities, pos = _cdr_float64s(buf, pos)
         _, pos = _cdr_float64s(buf, pos)                       # effort
         if not _complete(raw, pos):
             return None
-        return sec, nanosec, tuple(names), positions, velocities
+        return sec, nanosec, names, positions, velocities
     except (struct.error, ValueError):          # UnicodeDecodeError is a ValueError
         return None
+
+
+def _joint_state_names(buf):
+    """Return (sec, nanosec, names, offset after them) of a JointState's CDR body ``buf``."""
+    sec, nanosec, pos = _cdr_header(buf)
+    pos = (pos + 3) & -4
+    (count,) = _U32(buf, pos)
+    pos += 4
+    if count > len(buf):
+        raise ValueError("JointState name count beyond the message")
+    names = []
+    for _ in range(count):
+        name, pos = _cdr_string(buf, pos)
+        names.append(name)
+    return sec, nanosec, tuple(names), pos
 
 
 def _fast_wrench(raw, offset):
@@ -963,14 +969,7 @@ def _joint_state_layout(raw):
     if fast_joint_state(raw) is None:
         return None
     buf = bytes(raw[4:])
-    _, _, pos = _cdr_header(buf)
-    pos = (pos + 3) & -4
-    (count,) = _U32(buf, pos)
-    pos += 4
-    names = []
-    for _ in range(count):
-        name, pos = _cdr_string(buf, pos)
-        names.append(name)
+    _, _, names, pos = _joint_state_names(buf)
     sequences = []
     for _ in range(3):
         pos = (pos + 3) & -4
@@ -980,7 +979,7 @@ def _joint_state_layout(raw):
             pos = (pos + 7) & -8
         sequences.append((4 + pos, size))          # offsets in raw, after encapsulation
         pos += 8 * size
-    return tuple(names), tuple(sequences)
+    return names, tuple(sequences)
 
 
 def _decode_wrenches(items, idx, offset, block):

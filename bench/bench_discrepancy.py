@@ -284,6 +284,29 @@ def _importer():
     return mod
 
 
+def _measured_drives(title, header=None):
+    """
+    Print ``title`` (and ``header``); yield (drive, fit CSV, validation CSV, its temporary
+    directory) for each RViMLab drive, imported into a directory that lives until the next
+    drive; without the shared data, print why and yield nothing.
+    """
+    import io
+    import tempfile
+    epos = _importer()
+    root, why = epos.find_realdata()
+    print(title)
+    if root is None:
+        print(f"skipped: {why}")
+        return
+    if header:
+        print(header)
+    for drive in ("driveNo1", "driveNo2", "driveNo3"):
+        with tempfile.TemporaryDirectory() as tmp:
+            fit, val = epos.import_rvim(root / "rvim_screw_drives" / "raw" / "experiments" /
+                                        drive, tmp, log=io.StringIO())
+            yield drive, fit, val, tmp
+
+
 def servo_section(settings):
     """
     Sharp-edged inertia (trapezoidal moves) recorded at 2 kHz, 250, 50 and 10 Hz (issue 19).
@@ -328,29 +351,20 @@ def realdata_section(settings):
     import contextlib
     import io
     import json
-    import tempfile
     from pathlib import Path
     from bb_friction_ros.cli import main as cli_main
     from bb_friction_ros.discrepancy.workflow import worse_than_reference
-    epos = _importer()
-    root, why = epos.find_realdata()
-    print("\n== measured drives (RViMLab screw drives, MIT licence; Mablekos-Alexiou, da Cruz, "
-          "Bergeles, IEEE T-RO 37(4) 2021)")
-    if root is None:
-        print(f"skipped: {why}")
-        return
-    print("drive | cut-off [Hz] (chosen by) | held-out rel. error: workflow / reference | "
-          "validation rel. error: workflow / reference")
-    for drive in ("driveNo1", "driveNo2", "driveNo3"):
-        with tempfile.TemporaryDirectory() as tmp:
-            fit, val = epos.import_rvim(root / "rvim_screw_drives" / "raw" / "experiments" /
-                                        drive, tmp, log=io.StringIO())
-            t0 = time.perf_counter()
-            with contextlib.redirect_stdout(io.StringIO()):
-                status = cli_main(["discrepancy", str(fit), "--validate", str(val), "--out",
-                                   str(Path(tmp) / "out"), "--no-plots", "--no-progress"])
-            wall = time.perf_counter() - t0
-            s = json.loads((Path(tmp) / "out" / "summary.json").read_text())
+    for drive, fit, val, tmp in _measured_drives(
+            "\n== measured drives (RViMLab screw drives, MIT licence; Mablekos-Alexiou, da "
+            "Cruz, Bergeles, IEEE T-RO 37(4) 2021)",
+            "drive | cut-off [Hz] (chosen by) | held-out rel. error: workflow / reference | "
+            "validation rel. error: workflow / reference"):
+        t0 = time.perf_counter()
+        with contextlib.redirect_stdout(io.StringIO()):
+            status = cli_main(["discrepancy", str(fit), "--validate", str(val), "--out",
+                               str(Path(tmp) / "out"), "--no-plots", "--no-progress"])
+        wall = time.perf_counter() - t0
+        s = json.loads((Path(tmp) / "out" / "summary.json").read_text())
         v, h, acc = s.get("validation", {}), s["heldout"], s["acceleration"]
         terms = ", ".join(f"{e['name']}(" + ", ".join(f"{k}={x:.3g}" for k, x in
                                                       e["params"].items()) + ")"
@@ -414,22 +428,12 @@ def spectrum_floor_cutoff(rec, factor):
 
 def noise_floor_section(settings):
     """Validation error at the noise-floor cut-off against the cross-validated choice."""
-    import io
-    import tempfile
     from bb_friction_ros.discrepancy.data import load_recording
     from bb_friction_ros.discrepancy.workflow import analyse, validate, summary_of
-    epos = _importer()
-    root, why = epos.find_realdata()
-    print("\n== acceleration cut-off: velocity-spectrum noise floor vs blocked CV (validation "
-          "relative error, workflow / rigid-body reference)")
-    if root is None:
-        print(f"skipped: {why}")
-        return
-    for drive in ("driveNo1", "driveNo2", "driveNo3"):
-        with tempfile.TemporaryDirectory() as tmp:
-            fit, val = epos.import_rvim(root / "rvim_screw_drives" / "raw" / "experiments" /
-                                        drive, tmp, log=io.StringIO())
-            rec, rec2 = load_recording(fit), load_recording(val)
+    for drive, fit, val, _ in _measured_drives(
+            "\n== acceleration cut-off: velocity-spectrum noise floor vs blocked CV "
+            "(validation relative error, workflow / rigid-body reference)"):
+        rec, rec2 = load_recording(fit), load_recording(val)
         row = []
         for factor in (None,) + NOISE_FLOOR_FACTORS:
             s = settings
