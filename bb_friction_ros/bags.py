@@ -1059,9 +1059,10 @@ WRITE_BATCH = 4096
 # sequence, log time, publish time (then the payload).  rosbags' McapWriter.write spends
 # ~15 us per message on a BytesIO, five small writes and the chunk's bookkeeping: 25 700
 # writes were 0.45 s of a 6-second bag's replay at 1 rev/s, more than reading it (issue 20).
-_MCAP_MESSAGE = struct.Struct("<BQHIQQ")
+_MCAP_MESSAGE = np.dtype([("op", "u1"), ("length", "<u8"), ("channel", "<u2"),
+                          ("sequence", "<u4"), ("log", "<u8"), ("publish", "<u8")])
 _MCAP_MESSAGE_OP = 0x05
-_MCAP_MESSAGE_FIXED = _MCAP_MESSAGE.size - 9      # record length without its payload
+_MCAP_MESSAGE_FIXED = _MCAP_MESSAGE.itemsize - 9  # record length without its payload
 # rosbags' McapWriter closes a chunk after the message that takes it past this size.
 _MCAP_CHUNK_BYTES = 2 ** 20
 
@@ -1085,13 +1086,6 @@ def _mcap_batch_writable(writer):
         and all(hasattr(writer, a) for a in ("counts", "min_timestamp", "max_timestamp"))
 
 
-# The same fixed fields as a numpy record, to pack a batch's in one call.
-_MCAP_MESSAGE_DTYPE = np.dtype({
-    "names": ["op", "length", "channel", "sequence", "log", "publish"],
-    "formats": ["u1", "<u8", "<u2", "<u4", "<u8", "<u8"],
-    "offsets": [0, 1, 9, 11, 15, 23], "itemsize": _MCAP_MESSAGE.size})
-
-
 def _mcap_write_batch(writer, batch):
     """
     Write ``batch``, a list of (connection, log time [ns], CDR bytes), in order.
@@ -1106,13 +1100,13 @@ def _mcap_write_batch(writer, batch):
     stamps = np.fromiter((item[1] for item in batch), dtype=np.uint64, count=n)
     datas = [item[2] for item in batch]
     sizes = np.fromiter(map(len, datas), dtype=np.int64, count=n)
-    head = np.zeros(n, dtype=_MCAP_MESSAGE_DTYPE)
+    head = np.zeros(n, dtype=_MCAP_MESSAGE)
     head["op"] = _MCAP_MESSAGE_OP
     head["length"] = _MCAP_MESSAGE_FIXED + sizes
     head["channel"] = ids
     head["log"] = head["publish"] = stamps
     heads = head.tobytes()
-    width = _MCAP_MESSAGE.size
+    width = _MCAP_MESSAGE.itemsize
     ends = np.cumsum(width + sizes)              # record ends, from the batch's start
     i = 0
     while i < n:

@@ -768,7 +768,7 @@ def identifiability(choice, best, none, x, r, settings, tau, skip, fixed):
     twin = TWINS[name]
     cands = {c.name: c for c in candidates(x, settings, skip, fixed)}
     n_eff = r.size / max(tau, 1.0)
-    f_phys = fit(best.members, x, r - best.delta_fit, None, tau)
+    f_phys = fit(best.members, x, r - best.delta_fit, tau)
     bic_phys = f_phys.bic + math.log(n_eff)
     out = []
     if twin in cands:

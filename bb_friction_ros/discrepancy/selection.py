@@ -135,19 +135,9 @@ class Fit:
         return tuple(c.name for c, _ in self.members)
 
 
-def _design(members, x, cache=None):
-    n = x.t_s.size
-    cols = []
-    for c, nl in members:
-        key = (c.name, nl)
-        if cache is None or key not in cache:
-            a = c.columns(x, nl)
-            if cache is None:
-                cols.append(a)
-                continue
-            cache[key] = a
-        cols.append(cache[key])
-    return np.hstack(cols) if cols else np.zeros((n, 0))
+def _design(members, x):
+    cols = [c.columns(x, nl) for c, nl in members]
+    return np.hstack(cols) if cols else np.zeros((x.t_s.size, 0))
 
 
 def _bic(rss, n, k, tau=1.0):
@@ -323,15 +313,10 @@ def _rows(x, sl):
                      x.nut_accel_rad_s2)))
 
 
-def fit(members, x, r, cache=None, tau=1.0):
-    """
-    Least-squares fit of residual ``r`` on the model ``members``; return a Fit.
-
-    ``cache`` (a dict) keeps the design columns of (term, nonlinear value) between calls on
-    the same ``x``: profiling evaluates each many times.
-    """
+def fit(members, x, r, tau=1.0):
+    """Least-squares fit of residual ``r`` on the model ``members``; return a Fit."""
     members = tuple(members)
-    a = _design(members, x, cache)
+    a = _design(members, x)
     n = r.size
     if a.shape[1] == 0:
         coef = np.zeros(0)
@@ -481,7 +466,7 @@ def swap_evidence(members, bic, x, r, tau, settings):
     range) below ``bic_threshold`` means the data cannot tell the two apart.  Used here for
     AMBIGUOUS_PAIRS and by discrepancy.physical for a physical parameter and its twin.
     """
-    g = fit(members, x, r, None, tau)
+    g = fit(members, x, r, tau)
     delta = (g.bic - bic) if g.physical else math.inf
     return delta, bool(delta >= settings.bic_threshold)
 
