@@ -52,7 +52,9 @@ def started():
 
     Also ends start-up's pause of the garbage collector (``main``): the objects alive now
     (modules, numba's registries, the model) are frozen out of its walks, so a full
-    collection while the node answers does not walk them.
+    collection while the node answers does not walk them.  Start-up's own cyclic garbage
+    (about 1300 objects, measured) is frozen with them, a one-off few hundred kB: collecting
+    it first took 0.12 s holding the GIL, with the input thread already answering.
     """
     _starting[0] = False
     gc.freeze()
