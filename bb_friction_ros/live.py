@@ -14,13 +14,14 @@ Who steps and answers:
   rotation, the inputs come at the controller's rate): answered at once from the latest
   model state, in the caller's (input) thread;
 - a step due, the model thread idle and no other input waiting (``more_waiting`` False:
-  the input thread's batch held nothing after it): stepped and answered in the caller's
-  thread too.
+  the input thread's batch held nothing after it), or inputs waiting but none that would
+  be due another step after this one: stepped and answered in the caller's thread too.
   A hand-off to the model thread costs a scheduler wake-up: in-process at 1 rev/s, load
   8, the p99 from input to answer was 1.1-21.5 ms through the model thread and 0.7-0.8 ms
   stepped in the caller's thread (bench/bench_live_handoff.py, docs/model_schedule.md);
-- a step due while other inputs wait, or any input while the model thread works: queued
-  for the model thread, which steps, answers it and everything queued behind it in order.
+- a step due while inputs wait that would be due another step after it (the model is
+  behind), or any input while the model thread works: queued for the model thread, which
+  steps, answers it and everything queued behind it in order.
 
 After a step, once per model period of motion (``runner.profile_due``), the model thread
 steps a copy of the state ahead for the look-ahead profile, giving way to the next step.
@@ -175,8 +176,14 @@ class LiveSchedule:
         ``recv_ns``: when the middleware received it (``clock_ns`` time); ``stamp``: the
         header stamp as the publisher wants it back (the original goes out unchanged: float
         seconds lose ~0.2 us at epoch times).  ``more_waiting``: more nut_state inputs were
-        already received after this one (the input thread's batch): a due step then goes to
-        the model thread, which answers them in order and measures how far behind it is.
+        already received after this one (the input thread's batch), given as the newest of
+        them, (stamp_s, names, positions, velocities), or True if unknown.  A due step then
+        goes to the model thread, which answers them in order and skips steps, only if the
+        model is behind (``runner.due_between``: another step would be due by the newest);
+        otherwise it is stepped here as when nothing waits.  A hand-off waits for a
+        scheduler wake-up: with every due step handed off when two inputs came in one batch,
+        those 1-2 % of the answers were half of the slowest 1 % at 1 kHz
+        (docs/node_latency.md).
         """
         with self._lock:
             self._received["nut_state"] += 1
@@ -193,7 +200,8 @@ class LiveSchedule:
             w["accepted"] += 1
             runner = self._runner
             due = runner.step_due(sample)
-            if self._busy or (due and more_waiting):
+            if self._busy or (due and more_waiting and self._behind(runner, sample,
+                                                                    more_waiting)):
                 # the model thread answers it, in order, after the step it waits for
                 if len(self._queue) == self._queue.maxlen:
                     self._dropped += 1      # deque drops the oldest: the newest input wins
@@ -209,6 +217,10 @@ class LiveSchedule:
             pred = runner.process(sample)
         finally:
             self._stepping = False
+        self._inline += 1
+        # the answer first: the profile's seed and its hand-off wait (nothing steps the
+        # runner before this thread's next input)
+        self._finish(runner, pred, recv_ns, stamp, INLINE)
         if due:
             if runner.stats.resets != resets:
                 self._reset_warning(runner.stats.resets, sample.stamp_s)
@@ -217,8 +229,21 @@ class LiveSchedule:
                 with self._lock:
                     self._profile_seed = seed
                     self._wake.notify()
-        self._inline += 1
-        self._finish(runner, pred, recv_ns, stamp, INLINE)
+
+    def _behind(self, runner, sample, newest):
+        """
+        Whether a step at ``sample`` would leave another due at ``newest``, a waiting input.
+
+        ``newest``: (stamp_s, names, positions, velocities), or True when not known (then
+        assumed behind).  A newest input the assembler refuses tells nothing: behind.
+        """
+        if newest is True:
+            return True
+        try:
+            later = self._assembler.on_nut_state(*newest)
+        except InputError:          # counted when it is taken, not here
+            return True
+        return runner.due_between(sample, later)
 
     def on_axial_load(self, force_z_n):
         """Take one axial load [N] (held until the next)."""
@@ -297,11 +322,11 @@ class LiveSchedule:
             behind = newest is not None and runner.due_between(sample, newest)
             resets = runner.stats.resets
             pred = runner.process(sample, allow_step=not behind)
+            self._finish(runner, pred, recv_ns, stamp, MODEL)
             if runner.stats.resets != resets:
                 self._reset_warning(runner.stats.resets, sample.stamp_s)
             if self._profile_wanted(runner, pred, sample):
                 self._profile_seed = (runner.profile_seed(sample), stamp)
-            self._finish(runner, pred, recv_ns, stamp, MODEL)
 
     def _profile_wanted(self, runner, pred, sample):
         """

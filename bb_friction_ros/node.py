@@ -124,8 +124,12 @@ class FrictionNode(Node):
     # --- inputs and outputs (the schedule is live.LiveSchedule) ----------------------------
     def _on_nut_state(self, msg, recv_ns, newest=None):
         stamp = msg.header.stamp     # newest: a later nut_state already taken (InputTaker)
+        waiting = False
+        if newest is not None:
+            s = newest.header.stamp
+            waiting = (s.sec + 1e-9 * s.nanosec, newest.name, newest.position, newest.velocity)
         self.live.on_nut_state(stamp.sec + 1e-9 * stamp.nanosec, msg.name, msg.position,
-                               msg.velocity, recv_ns, stamp, newest is not None)
+                               msg.velocity, recv_ns, stamp, waiting)
 
     def _on_axial_load(self, msg):
         self.live.on_axial_load(msg.wrench.force.z)

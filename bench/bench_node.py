@@ -11,7 +11,15 @@ to the thin node, the profile rate and what its diagnostics say (shed, skipped, 
 The machine's load (``os.getloadavg``) is printed with every line: absolute times are noisy
 on a shared 2-core machine; the ratios are the figure that counts.
 
+``--kinds thin edge friction`` adds a diagnostic node, friction_node with the model's step
+made free (``bench/diag_node.py``, which has more switches): the edge's own tail apart from
+the model's.  ``--trace DIR`` splits each answer's time in the node by path.  Each
+answer also carries the node's own ``model_latency_s`` (middleware receipt to publication),
+printed as "in the node", so the DDS hops and the client's share are apart from the node's.
+``--repeats 3`` runs the kinds three times, alternating, and prints the median ratio.
+
 Run: .venv/bin/python bench/bench_node.py [--duration 10] [--rates 500 1000 2000]
+     [--repeats 3] [--kinds thin edge friction]
 """
 
 import argparse
@@ -48,6 +56,10 @@ def _p99_ms(lat_s):
     return float(np.percentile(lat_s, 99) * 1e3) if lat_s.size else float("nan")
 
 
+def _p50_ms(lat_s):
+    return float(np.percentile(lat_s, 50) * 1e3) if lat_s.size else float("nan")
+
+
 def drive(rate_hz, duration_s, pid, context, warmup_s=1.0, rev_s=1.0):
     """Send nut_state at ``rate_hz``: ``warmup_s`` unmeasured, then ``duration_s`` timed."""
     from bb_friction_msgs.msg import FeedforwardProfile, FrictionPrediction
@@ -64,6 +76,7 @@ def drive(rate_hz, duration_s, pid, context, warmup_s=1.0, rev_s=1.0):
                                      qos_profile_sensor_data)
     sent, latency, diags, profiles = {}, [], [], []
     stepped = []        # per answer: True if its model state was computed for it (age 0)
+    in_node = []        # per answer: the node's own model_latency_s (receipt to publication)
     lock = threading.Lock()
     measuring = [False]
 
@@ -75,6 +88,7 @@ def drive(rate_hz, duration_s, pid, context, warmup_s=1.0, rev_s=1.0):
             if t0 is not None and measuring[0]:
                 latency.append(t - t0)
                 stepped.append(msg.model_age_s == 0.0)
+                in_node.append(msg.model_latency_s)
 
     def on_diag(msg):
         for st in msg.status:
@@ -159,6 +173,7 @@ def drive(rate_hz, duration_s, pid, context, warmup_s=1.0, rev_s=1.0):
     taker.destroy_node()
     lat = np.array(latency)
     fresh = np.array(stepped, dtype=bool)
+    own = np.array(in_node)
     diag, note = diags[-1] if diags else ({}, "")
     prof_t = np.array([p[0] for p in profiles])
     return {
@@ -169,6 +184,10 @@ def drive(rate_hz, duration_s, pid, context, warmup_s=1.0, rev_s=1.0):
         # where the tail comes from: answers that waited for their own model step (age 0;
         # the thin node's answers all have age 0) and answers from a held state
         "p99_stepped_ms": _p99_ms(lat[fresh]), "p99_held_ms": _p99_ms(lat[~fresh]),
+        "p50_stepped_ms": _p50_ms(lat[fresh]), "p50_held_ms": _p50_ms(lat[~fresh]),
+        # the node's own share (middleware receipt to publication; the thin node sends 0)
+        "in_node_p50_ms": _p50_ms(own), "in_node_p99_ms": _p99_ms(own),
+        "in_node_p99_stepped_ms": _p99_ms(own[fresh]), "in_node_p99_held_ms": _p99_ms(own[~fresh]),
         "stepped_share": float(fresh.mean()) if fresh.size else float("nan"),
         "cpu_share": (cpu1 - cpu0) / (wall + 1.5),
         "cpu_us_per_input": 1e6 * (cpu1 - cpu0) / n,
@@ -180,13 +199,32 @@ def drive(rate_hz, duration_s, pid, context, warmup_s=1.0, rev_s=1.0):
     }
 
 
-def run_node(kind, rate_hz, duration_s, context, extra_args=(), rev_s=1.0):
-    """Start ``kind`` (thin or friction), drive it, stop it; return the figures."""
-    if kind == "thin":
-        cmd = [sys.executable, os.path.join(HERE, "thin_node.py")]
-    else:
-        cmd = [os.path.join(os.path.dirname(sys.executable), "friction_node"), *extra_args]
-    proc = subprocess.Popen(cmd, env=os.environ.copy())
+_DIAG = os.path.join(HERE, "diag_node.py")
+# kind: (command, environment); the diagnostic kinds are bench/diag_node.py's switches
+NODE_COMMANDS = {
+    "thin": ([sys.executable, os.path.join(HERE, "thin_node.py")], {}),
+    "friction": ([os.path.join(os.path.dirname(sys.executable), "friction_node")], {}),
+    "edge": ([sys.executable, _DIAG], {"BENCH_FREE_STEP": "1"}),
+    "noprofile": ([sys.executable, _DIAG], {"BENCH_NO_PROFILE": "1"}),
+    "traced": ([sys.executable, _DIAG], {}),
+    "handoff": ([sys.executable, _DIAG], {"BENCH_HANDOFF_ALL": "1"}),
+}
+
+
+def run_node(kind, rate_hz, duration_s, context, extra_args=(), rev_s=1.0, trace=None,
+             rt_priority=0):
+    """Start ``kind`` (NODE_COMMANDS), drive it, stop it; return the figures."""
+    cmd, env = NODE_COMMANDS[kind]
+    cmd = cmd + ([] if kind == "thin" else list(extra_args))
+    if rt_priority:
+        cmd = ["chrt", "-f", str(rt_priority)] + cmd
+    env = {**os.environ, **env}
+    if trace and kind != "thin":
+        env["BENCH_TRACE"] = trace
+        if kind == "friction":
+            exe = cmd.index(NODE_COMMANDS["friction"][0][0])
+            cmd = cmd[:exe] + [sys.executable, _DIAG] + cmd[exe + 1:]
+    proc = subprocess.Popen(cmd, env=env)
     try:
         time.sleep(2.0 if kind == "thin" else 4.0)    # numba cache, friction maps
         if proc.poll() is not None:
@@ -200,62 +238,129 @@ def run_node(kind, rate_hz, duration_s, context, extra_args=(), rev_s=1.0):
             proc.kill()
 
 
+def trace_summary(path):
+    """One line from a diag_node trace: where an answer's time in the node goes (p50/p99)."""
+    t = np.load(path)
+    wait = 1e-6 * (t["entered_ns"] - t["recv_ns"])       # receipt -> the schedule has it
+    work = 1e-6 * (t["published_ns"] - t["entered_ns"])  # -> answer published
+    inline = t["thread"] == 0
+    stepped = t["stepped"] == 1
+    parts = []
+    for name, m in (("inline held", inline & ~stepped), ("inline stepped", inline & stepped),
+                    ("model thread", ~inline)):
+        if m.any():
+            parts.append(f"{name} {100 * m.mean():.1f} %: to schedule p50/p99 "
+                         f"{np.percentile(wait[m], 50):.3f}/{np.percentile(wait[m], 99):.3f}"
+                         f" ms, to publish {np.percentile(work[m], 50):.3f}/"
+                         f"{np.percentile(work[m], 99):.3f} ms")
+    return "      trace: " + "; ".join(parts)
+
+
+def _line(rate, kind, r, load):
+    d = r["diagnostics"]
+    extra = ""
+    if kind != "thin":
+        extra = (f"\n      answers: stepped {100 * r['stepped_share']:.0f} % p50/p99 "
+                 f"{r['p50_stepped_ms']:.2f}/{r['p99_stepped_ms']:.2f} ms, held "
+                 f"p50/p99 {r['p50_held_ms']:.2f}/{r['p99_held_ms']:.2f} ms | in the node "
+                 f"(receipt to publication) p50 {r['in_node_p50_ms']:.3f} ms, p99 "
+                 f"{r['in_node_p99_ms']:.3f} ms (stepped {r['in_node_p99_stepped_ms']:.3f}, "
+                 f"held {r['in_node_p99_held_ms']:.3f})"
+                 f"\n      profiles {r['profiles_per_s']:.0f}/s x "
+                 f"{r['profile_points']} points | node: shed "
+                 f"{d.get('shed_inputs', '?')}, skipped steps "
+                 f"{d.get('skipped_steps', '?')}, dropped "
+                 f"{d.get('dropped_inputs', '?')}, non-converged "
+                 f"{d.get('nonconverged_steps', '?')}, step "
+                 f"{d.get('last_step_s', '?')} s, coarse steps "
+                 f"{d.get('coarse_steps', '?')} at {d.get('model_step_deg', '?')} deg, "
+                 f"inline {d.get('answered_inline', '?')} of {d.get('published', '?')}, "
+                 f"fast inputs {d.get('fast_inputs', '?')}")
+    return (f"{rate:5.0f} Hz {kind:8s} answered {100 * r['answered_share']:6.2f} % "
+            f"p50 {r['p50_ms']:6.2f} ms p99 {r['p99_ms']:6.2f} ms  CPU "
+            f"{100 * r['cpu_share']:4.0f} % of a core ({r['cpu_us_per_input']:5.0f}"
+            f" us/input)  RSS {r['rss_mb'][1]:4.0f} MB  load {load:.1f}{extra}")
+
+
 def main():
-    """Run both nodes at each rate, print one line each and the ratios."""
+    """Run the nodes at each rate (``--repeats`` rounds), print each and the ratios."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     ap.add_argument("--duration", type=float, default=10.0)
     ap.add_argument("--rates", type=float, nargs="+", default=[500.0, 1000.0, 2000.0])
     ap.add_argument("--json", help="also write all figures to this file")
     ap.add_argument("--rev-s", type=float, default=1.0, help="nut speed [rev/s] (issue 20: "
                     "20 rev/s steps the model every 1.8 deg, 4000 steps/s)")
+    ap.add_argument("--repeats", type=int, default=1,
+                    help="rounds of all kinds, alternating; the ratios' median is printed")
+    ap.add_argument("--kinds", nargs="+", default=["thin", "friction"],
+                    choices=sorted(NODE_COMMANDS),
+                    help="nodes per round; diagnostics (bench/diag_node.py): 'edge' = "
+                         "friction_node with the model's step made free, 'noprofile' = no "
+                         "look-ahead profiles, 'handoff' = every due step with inputs waiting "
+                         "handed to the model thread (the rule before 2026-11-25), 'traced' = "
+                         "as shipped")
+    ap.add_argument("--trace", metavar="DIR",
+                    help="run friction_node and the diagnostic kinds through "
+                         "bench/diag_node.py with BENCH_TRACE: per answer, receipt -> "
+                         "schedule -> publication, by path (inline held or stepped, model "
+                         "thread); .npz files in DIR")
+    ap.add_argument("--rt-priority", type=int, default=0, metavar="P",
+                    help="run this client and the nodes (all their threads, DDS's too) "
+                         "SCHED_FIFO at priority P (chrt): on a shared machine the other "
+                         "processes then barely delay them, about as on a quiet one. A "
+                         "diagnostic: a node at its default priority is the figure")
     ap.add_argument("--node-args", nargs=argparse.REMAINDER, default=[],
-                    help="extra friction_node arguments, e.g. --ros-args -p "
+                    help="extra friction_node (and edge) arguments, e.g. --ros-args -p "
                          "max_answer_age_s:=0.01")
     args = ap.parse_args()
     sys.setswitchinterval(2.5e-4)     # the client is two Python threads too
+    if args.rt_priority:    # before rclpy: DDS's threads inherit it
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(args.rt_priority))
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     os.environ.setdefault("ROS_DOMAIN_ID", str(local_domain_id()))
     import rclpy
     context = rclpy.Context()
     rclpy.init(context=context)
     results = []
+    ratios = {}         # (rate, kind): [(p50 ratio, p99 ratio)] against thin, per round
     try:
-        for rate in args.rates:
-            pair = {}
-            for kind in ("thin", "friction"):
-                load = os.getloadavg()[0]
-                r = run_node(kind, rate, args.duration, context, args.node_args, args.rev_s)
-                r["kind"], r["load_1min"] = kind, load
-                pair[kind] = r
-                results.append(r)
-                d = r["diagnostics"]
-                extra = ""
-                if kind == "friction":
-                    extra = (f" | p99 stepped {r['p99_stepped_ms']:.2f} ms "
-                             f"({100 * r['stepped_share']:.0f} %), held "
-                             f"{r['p99_held_ms']:.2f} ms"
-                             f" | profiles {r['profiles_per_s']:.0f}/s x "
-                             f"{r['profile_points']} points | node: shed "
-                             f"{d.get('shed_inputs', '?')}, skipped steps "
-                             f"{d.get('skipped_steps', '?')}, dropped "
-                             f"{d.get('dropped_inputs', '?')}, non-converged "
-                             f"{d.get('nonconverged_steps', '?')}, step "
-                             f"{d.get('last_step_s', '?')} s, model "
-                             f"{d.get('model_rate_hz', '?')} steps/s, coarse steps "
-                             f"{d.get('coarse_steps', '?')} at "
-                             f"{d.get('model_step_deg', '?')} deg")
-                print(f"{rate:5.0f} Hz {kind:8s} answered {100 * r['answered_share']:6.2f} % "
-                      f"p50 {r['p50_ms']:6.2f} ms p99 {r['p99_ms']:6.2f} ms  CPU "
-                      f"{100 * r['cpu_share']:4.0f} % of a core ({r['cpu_us_per_input']:5.0f}"
-                      f" us/input)  RSS {r['rss_mb'][1]:4.0f} MB  load {load:.1f}{extra}",
-                      flush=True)
-            t, f = pair["thin"], pair["friction"]
-            print(f"{rate:5.0f} Hz ratio friction/thin: p50 {f['p50_ms'] / t['p50_ms']:.2f}, "
-                  f"p99 {f['p99_ms'] / t['p99_ms']:.2f}, CPU/input "
-                  f"{f['cpu_us_per_input'] / t['cpu_us_per_input']:.2f}, RSS "
-                  f"{f['rss_mb'][1] / t['rss_mb'][1]:.2f}", flush=True)
+        for rnd in range(args.repeats):
+            for rate in args.rates:
+                pair = {}
+                for kind in args.kinds:
+                    load = os.getloadavg()[0]
+                    trace = None
+                    if args.trace:
+                        os.makedirs(args.trace, exist_ok=True)
+                        trace = os.path.join(args.trace, f"{kind}_{rate:.0f}_{rnd}.npz")
+                    r = run_node(kind, rate, args.duration, context, args.node_args,
+                                 args.rev_s, trace, args.rt_priority)
+                    r["kind"], r["load_1min"], r["round"] = kind, load, rnd
+                    pair[kind] = r
+                    results.append(r)
+                    print(_line(rate, kind, r, load), flush=True)
+                    if trace and kind != "thin" and os.path.exists(trace):
+                        print(trace_summary(trace), flush=True)
+                t = pair.get("thin")
+                for kind, f in pair.items():
+                    if kind == "thin" or t is None:
+                        continue
+                    ratios.setdefault((rate, kind), []).append(
+                        (f["p50_ms"] / t["p50_ms"], f["p99_ms"] / t["p99_ms"]))
+                    print(f"{rate:5.0f} Hz ratio {kind}/thin: p50 "
+                          f"{f['p50_ms'] / t['p50_ms']:.2f}, p99 "
+                          f"{f['p99_ms'] / t['p99_ms']:.2f}, CPU/input "
+                          f"{f['cpu_us_per_input'] / t['cpu_us_per_input']:.2f}, RSS "
+                          f"{f['rss_mb'][1] / t['rss_mb'][1]:.2f}", flush=True)
     finally:
         rclpy.try_shutdown(context=context)
+    for (rate, kind), rs in sorted(ratios.items()):
+        p50s, p99s = zip(*rs)
+        print(f"{rate:5.0f} Hz {kind}/thin over {len(rs)} rounds: p99 ratio median "
+              f"{np.median(p99s):.2f} ({', '.join(f'{x:.2f}' for x in p99s)}), p50 ratio "
+              f"median {np.median(p50s):.2f}")
+    if args.rt_priority:
+        print(f"client and nodes ran SCHED_FIFO priority {args.rt_priority} (--rt-priority)")
     print(f"machine load at the end (1/5/15 min): "
           f"{' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     if args.json:

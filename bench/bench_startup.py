@@ -10,11 +10,14 @@ empty ``NUMBA_CACHE_DIR`` (every kernel compiled at start-up); "warm" uses the n
 The machine's load is printed: absolute times on a shared 2-core machine are noisy; compare
 medians in one run.
 
-Run: .venv/bin/python bench/bench_startup.py [--runs 5] [--cold-runs 1]
+The package is byte-compiled first (``--no-bytecode``: not), as an installed package is.
+
+Run: .venv/bin/python bench/bench_startup.py [--runs 5] [--cold-runs 1] [--no-bytecode]
 """
 
 import argparse
 import os
+import re
 import signal
 import statistics
 import subprocess
@@ -61,6 +64,12 @@ def time_to_ready(env, timeout_s=READY_TIMEOUT_S):
     return found[0]
 
 
+def own_figures(line):
+    """Return (seconds after launch, CPU seconds) from the node's ready line (nan if absent)."""
+    m = re.search(r"([0-9.]+) s after launch \(([0-9.]+) s of CPU\)", line)
+    return (float(m.group(1)), float(m.group(2))) if m else (float("nan"), float("nan"))
+
+
 def time_thin(env):
     """Start the bare rclpy node; return wall seconds until its input is matched."""
     import rclpy
@@ -95,7 +104,19 @@ def main():
     ap.add_argument("--cold-timeout", type=float, default=900.0,
                     help="seconds a cold run may take to compile (120 s was too short at "
                          "load 8 on 2 cores)")
+    ap.add_argument("--no-bytecode", action="store_true",
+                    help="do not byte-compile the package first: with PYTHONDONTWRITEBYTECODE "
+                         "set (as in this project's shells) every start then compiles the "
+                         "package's sources, ~0.1 s of CPU an installed package never pays")
     args = ap.parse_args()
+    if not args.no_bytecode:
+        # warm means every cache a deployed package has: pip and colcon byte-compile on
+        # install; an editable checkout has bytecode only if Python may write it
+        import compileall
+        import bb_friction_ros
+        compileall.compile_dir(os.path.dirname(bb_friction_ros.__file__), quiet=1)
+    print(f"bytecode of the package: {'not compiled' if args.no_bytecode else 'compiled'}; "
+          f"PYTHONDONTWRITEBYTECODE={os.environ.get('PYTHONDONTWRITEBYTECODE', '')!r}")
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     os.environ.setdefault("ROS_DOMAIN_ID", str(local_domain_id()))
     env = os.environ.copy()
@@ -115,6 +136,11 @@ def main():
     print(f"friction_node launch to ready, warm numba cache: median "
           f"{statistics.median(warm):.2f} s (runs: {', '.join(f'{t:.2f}' for t in warm)})")
     print(f"  its own line: {own[len(own) // 2]}")
+    ages, cpus = zip(*(own_figures(line) for line in own))
+    # CPU to ready is what the start-up costs; a loaded machine inflates the wall time more
+    print(f"  its own figures: median {statistics.median(ages):.2f} s after launch, "
+          f"{statistics.median(cpus):.2f} s of CPU (runs: "
+          f"{', '.join(f'{c:.2f}' for c in cpus)})")
     print(f"bare rclpy node (bench/thin_node.py) launch to subscribed: median "
           f"{statistics.median(thin):.2f} s; friction_node / bare "
           f"{statistics.median(warm) / statistics.median(thin):.2f}")

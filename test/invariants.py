@@ -27,9 +27,10 @@ import pytest
 LINEAR_POWER_REL = 1e-9
 # A loss is an integral of |slip| x pressure >= 0; -1e-15 W allows the quadrature's rounding.
 LOSS_FLOOR_W = -1e-15
-# The ball screw solves to tolerance 1e-10 on a residual scaled by the per-ball load; the
-# balance of one cold-solved ball closes to ~1e-9, hence 1e-7.
-SCREW_BALL_POWER_REL = 1e-7
+# The ball screw solves to tolerance 1e-8 on a residual scaled by the per-ball load (1e-10
+# until 2026-11, docs/model_schedule.md); the balance of one cold-solved ball closes to
+# 1.2e-6 there (6e-8 at 1e-10, measured over test_single_ball's cases), hence 1e-5.
+SCREW_BALL_POWER_REL = 1e-5
 # Whole screw and module: the total torque comes from the nut's equilibrium, the parts from
 # the losses; they agree to the solver's power balance (<= 4.4e-8 in the Sec. 3.4 run).
 SCREW_POWER_REL = 1e-6

@@ -17,7 +17,8 @@ from bb_friction_ros.live import (ERROR, LiveSchedule, OK, Outputs, process_age_
                                   process_cpu_s, WARN)
 from bb_friction_ros.node_parameters import NodeParameters
 from bb_friction_ros.replay import run_events
-from bb_friction_ros.runner import build_runner, InputAssembler, InputSample, ModelRunner
+from bb_friction_ros.runner import (build_runner, InputAssembler, InputError, InputSample,
+                                    ModelRunner)
 from recordings import short_recording
 from test_node_feedforward_sign import SlowScrew
 
@@ -62,13 +63,23 @@ def schedule(params=None, runner=None, clock=None, clock_ns=time.time_ns):
 
 
 def feed(live, events, wait_idle=True, more_waiting=False):
-    """Hand ``events`` in as the node's input thread would; wait for each to be answered."""
+    """
+    Hand ``events`` in as the node's input thread would; wait for each to be answered.
+
+    ``more_waiting`` an int k: as if the nut_states up to k later had already arrived with
+    each one (the input thread's batch): the k-th later is handed in as the newest waiting.
+    """
+    states = [ev for ev in events if ev.kind == "nut_state"]
+    k = more_waiting if type(more_waiting) is int else 1
+    later = {id(a): (b.stamp_s, b.names, b.positions, b.velocities)
+             for a, b in zip(states, states[k:])}
     for ev in events:
         if ev.kind == "axial_load":
             live.on_axial_load(ev.value)
         elif ev.kind == "nut_state":
+            waiting = later.get(id(ev), False) if type(more_waiting) is int else more_waiting
             live.on_nut_state(ev.stamp_s, ev.names, ev.positions, ev.velocities,
-                              time.time_ns(), ev.stamp_s, more_waiting)
+                              time.time_ns(), ev.stamp_s, waiting)
             while wait_idle and not live.idle():
                 time.sleep(0.0002)
 
@@ -80,12 +91,15 @@ def wait_until(cond, timeout_s=20.0):
         time.sleep(0.001)
 
 
-@pytest.mark.parametrize("more_waiting", [False, True])
+@pytest.mark.parametrize("more_waiting", [False, True, 1, 6])
 def test_live_schedule_equals_replay(more_waiting):
     """
     Paced inputs (the model keeps up): the answers are replay's, value for value.  With no
     other input waiting a due step is taken in the caller's thread (no hand-off); with
-    inputs waiting (a batch) it goes to the model thread: the same answers either way.
+    inputs waiting (a batch, not known which) it goes to the model thread; with the newest
+    waiting input known (1 or 6 inputs later: 5 inputs per model period), only the steps
+    after which that one would be due again go to the model thread (the model is behind):
+    the same answers every way.
     """
     events = short_recording(state_rate_hz=500.0)     # 5 inputs per model period
     live, rec = schedule()
@@ -106,7 +120,36 @@ def test_live_schedule_equals_replay(more_waiting):
     assert values["profiles"] == len(rec.profiles) > 0
     stepped = [a for a in rec.answers if a[0].stepped]
     assert 0 < len(stepped) < len(rec.answers)
-    if more_waiting:    # steps in the model thread, the rest in the caller's
+    if type(more_waiting) is int:   # handed off: the steps the newest would follow
+        runner = build_runner(bundled_config("ball_screw.yaml"), p.model_rate_hz)
+        asm = InputAssembler(p.nut_joint, p.max_axial_load_n)
+        behind = set()
+        states = [ev for ev in events if ev.kind == "nut_state"]
+        for ev in events:
+            if ev.kind == "axial_load":
+                asm.on_axial_load(ev.value)
+                continue
+            try:
+                a = asm.on_nut_state(ev.stamp_s, ev.names, ev.positions, ev.velocities)
+            except InputError:
+                continue
+            i = states.index(ev)
+            if runner.step_due(a) and i + more_waiting < len(states):
+                b = states[i + more_waiting]
+                try:        # a refused newest input tells nothing: handed off
+                    late = runner.due_between(a, asm.on_nut_state(
+                        b.stamp_s, b.names, b.positions, b.velocities))
+                except InputError:
+                    late = True
+                if late:
+                    behind.add(a.stamp_s)
+            runner.process(a)
+        # the next input is never a step further (5 per period), the sixth nearly always
+        # (not for the last steps, with fewer than six inputs after them)
+        assert len(behind) == 0 if more_waiting == 1 else len(stepped) - 6 < len(behind)
+        assert {a[1] for a in rec.answers if a[3] == 1} == behind
+        assert values["answered_inline"] == len(rec.answers) - len(behind)
+    elif more_waiting:  # steps in the model thread, the rest in the caller's
         assert {a[3] for a in stepped} == {1} and len(rec.threads) == 2
         assert values["answered_inline"] == len(rec.answers) - len(stepped)
     else:               # everything in the caller's thread

@@ -395,3 +395,35 @@ def test_inputs_wake_the_input_thread_not_the_executor(ros_context):
     finally:
         node.destroy_node()
         io.destroy_node()
+
+
+def test_collector_paused_during_start_up_only(monkeypatch):
+    """Start-up runs without the garbage collector (0.15 s of ~1 s); it is back once spinning.
+
+    After ``started`` the start-up objects are frozen out of its walks, and an in-process
+    caller (the CLI, tests) gets its collector back as it was whatever the node returns.
+    """
+    import gc
+    from bb_friction_ros import node, node_entry
+    seen = {}
+
+    def fake_main(args, on_spin):
+        seen["starting"] = gc.isenabled()
+        frozen = gc.get_freeze_count()
+        on_spin()
+        seen["spinning"] = gc.isenabled()
+        seen["frozen"] = gc.get_freeze_count() - frozen
+        gc.disable()            # whatever the node did, main restores the caller's state
+        return 0
+
+    monkeypatch.setattr(node_entry, "install_handlers", lambda: None)
+    monkeypatch.setattr(node, "main", fake_main)
+    monkeypatch.setattr(node_entry, "_starting", [True])
+    assert gc.isenabled()
+    try:
+        assert node_entry.main([]) == 0
+        assert gc.isenabled()
+    finally:
+        gc.unfreeze()
+        gc.enable()
+    assert seen["starting"] is False and seen["spinning"] is True and seen["frozen"] > 0

@@ -119,7 +119,7 @@ class Operation:
 class SolverSettings:
     """Newton / active-set settings; they set accuracy, never the physics."""
 
-    tolerance: float = field(1e-10, "1", "residual tolerance relative to the force scale",
+    tolerance: float = field(1e-8, "1", "residual tolerance relative to the force scale",
                              lo=1e-15, hi=1e-3)
     max_iterations: int = field(40, "1", "Newton iterations per active set", lo=1, hi=1000)
     max_active_set_changes: int = field(50, "1", "active-set updates per solve", lo=1,

@@ -117,7 +117,8 @@ def _as_displacements(u, shape):
             and u.flags.c_contiguous and u.flags.writeable):
         return u
     if isinstance(u, float):
-        return np.full(shape, u)
+        # np.array([u]) costs a fifth of np.full((1,), u), twice per rigid step.
+        return np.array([u]) if shape == (1,) else np.full(shape, u)
     return np.array(np.broadcast_to(u, shape), dtype=float)
 
 
@@ -145,6 +146,12 @@ class WholeScrew:
         self.separation = self.model.b2b.separation
         self.max_contact_load_n = self.model.max_contact_load_n()
         self.max_axial_load_n = self.model.max_axial_load_n(self.n)
+        # Fixed by the config, read at every step.
+        self._preload = self.model.preload_load() > 0.0
+        e, b = config.errors, self.model.ball
+        self._plain_theta = None if (e.screw_lead_error_amplitude_m or e.nut_lead_error_m) \
+            else (e.theta_amplitude_rad, e.theta_cycles_per_rev, e.theta_phase_rad,
+                  e.theta_offset_rad, b.r_groove - b.r_b, b.beta0)
         if self.n * self.separation >= self.loop:
             raise ValueError(
                 f"ball_screw.track.n_balls: {self.n} balls need "
@@ -179,11 +186,9 @@ class WholeScrew:
         """Arc centres of every ball from theta(phi) and the lead errors (Figs. 15, 17, 19)."""
         e = self.config.errors
         b = self.model.ball
-        if not (e.screw_lead_error_amplitude_m or e.nut_lead_error_m):
-            theta, centres = kernel.theta_centres(
-                np.ascontiguousarray(phi, dtype=float), e.theta_amplitude_rad,
-                e.theta_cycles_per_rev, e.theta_phase_rad, e.theta_offset_rad,
-                b.r_groove - b.r_b, b.beta0)
+        if self._plain_theta is not None:
+            theta, centres = kernel.theta_centres(np.ascontiguousarray(phi, dtype=float),
+                                                  *self._plain_theta)
             return theta, centres, (theta, 0.0, 0.0)
         theta = geo.theta_deviation(phi, e.theta_amplitude_rad, e.theta_cycles_per_rev,
                                     e.theta_phase_rad, e.theta_offset_rad)
@@ -248,23 +253,30 @@ class WholeScrew:
         d_psi = float(nut_angle_rad) - self.nut_angle
         self.nut_angle = float(nut_angle_rad)
         self.time += float(dt_s)
-        self.azimuth = isotonic_ring_projection(self.azimuth + self.ratio * d_psi,
-                                                self.separation, self.loop)
         omega_n = float(nut_velocity_rad_s)
         axial_load_n = float(axial_load_n)
-        preload = self.model.preload_load() > 0.0
-        if omega_n == 0.0 or (not preload
-                              and abs(axial_load_n) <= self.config.solver.min_axial_load_n):
+        unloaded = not self._preload and abs(axial_load_n) <= self.config.solver.min_axial_load_n
+        if omega_n == 0.0 or unloaded or abs(axial_load_n) > self.max_axial_load_n:
+            self.azimuth = isotonic_ring_projection(self.azimuth + self.ratio * d_psi,
+                                                    self.separation, self.loop)
             self._prev = None
-            return self._zero_result(omega_n, axial_load_n, dt_s)
-        if abs(axial_load_n) > self.max_axial_load_n:
             # Beyond the model's range even on average (config.validity): not solved.
-            self._prev = None
-            return self._zero_result(omega_n, axial_load_n, dt_s, in_range=False)
+            return self._zero_result(omega_n, axial_load_n, dt_s,
+                                     in_range=omega_n == 0.0 or unloaded)
         sign = 1.0 if omega_n > 0.0 else -1.0
-        phi = self.track_azimuth()
-        theta, centres, shifts = self._centres(phi)
-        pair_idx, rear, front = self._pairs(sign)
+        if self._plain_theta is not None:
+            # No lead errors: the geometry of the step in one compiled call.
+            self.azimuth, phi, theta, centres, pair_idx, rear, front = kernel.advance(
+                self.azimuth, self.ratio, d_psi, self.separation, self.loop,
+                self.nut_angle + self.config.track.track_start_rad,
+                self.config.solver.gap_tolerance_rad, sign, *self._plain_theta)
+            shifts = (theta, 0.0, 0.0)
+        else:
+            self.azimuth = isotonic_ring_projection(self.azimuth + self.ratio * d_psi,
+                                                    self.separation, self.loop)
+            phi = self.track_azimuth()
+            theta, centres, shifts = self._centres(phi)
+            pair_idx, rear, front = self._pairs(sign)
         scale = self.model.force_scale(self.n, axial_load_n)
         elastic = None
         if self.config.load_distribution == "elastic":

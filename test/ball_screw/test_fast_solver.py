@@ -17,6 +17,23 @@ from invariants import check_module, check_step
 pytestmark = pytest.mark.skipif(not kernel.HAVE_NUMBA, reason="numba not installed")
 
 STEPS = 40    # 144 deg of nut rotation: chains form, grow and start to decay
+# These tests compare two implementations, each converged to the solver tolerance, so
+# their answers differ by about that tolerance.  Their bounds (1e-8 relative and finer) were
+# set with the tolerance at 1e-10 and test the kernel sharply there; the default is 1e-8
+# since 2026-11 (docs/model_schedule.md), so this file pins 1e-10 rather than widening them.
+COMPARE_TOLERANCE = 1e-10
+
+
+@pytest.fixture(scope="module")
+def config():
+    """The default configuration at the comparison tolerance."""
+    return load_ball_screw(overrides={"solver": {"tolerance": COMPARE_TOLERANCE}})
+
+
+@pytest.fixture(scope="module")
+def model(config):
+    """ScrewModel (compiled kernel) at the comparison tolerance."""
+    return ScrewModel(config)
 
 
 @pytest.fixture(scope="module")
@@ -138,7 +155,8 @@ def test_secant_warm_start_changes_nothing(config, model, numpy_run, monkeypatch
 
 
 def test_realtime_budget_is_never_silent(model, numpy_run):
-    cfg = load_ball_screw(overrides={"solver": {"realtime_max_iterations": 2}})
+    cfg = load_ball_screw(overrides={"solver": {"realtime_max_iterations": 2,
+                                                "tolerance": COMPARE_TOLERANCE}})
     results = run_whole_screw(cfg, n_steps=STEPS, screw=WholeScrew(cfg, model))[0]
     assert all(r.iterations <= 2 for r in results[1:])
     short = [r for r in results if not r.converged]
@@ -152,7 +170,8 @@ def test_realtime_budget_is_never_silent(model, numpy_run):
 
 def test_realtime_large_budget_is_the_default(config, model, numpy_run):
     assert config.solver.realtime_max_iterations == 0       # off by default
-    cfg = load_ball_screw(overrides={"solver": {"realtime_max_iterations": 1000}})
+    cfg = load_ball_screw(overrides={"solver": {"realtime_max_iterations": 1000,
+                                                "tolerance": COMPARE_TOLERANCE}})
     results = run_whole_screw(cfg, n_steps=STEPS, screw=WholeScrew(cfg, model))[0]
     _assert_same_run(results, numpy_run)
 
@@ -171,7 +190,8 @@ def test_centres_fast_path_equals_geometry(config, model):
 
 def test_lead_errors_kernel_equals_numpy(model, numpy_model):
     cfg = load_ball_screw(overrides={"errors": {"nut_lead_error_um": 2.0,
-                                                "screw_lead_error_amplitude_um": 1.0}})
+                                                "screw_lead_error_amplitude_um": 1.0},
+                                     "solver": {"tolerance": COMPARE_TOLERANCE}})
     fast = run_whole_screw(cfg, n_steps=12, screw=WholeScrew(cfg, model))[0]
     ref = run_whole_screw(cfg, n_steps=12, screw=WholeScrew(cfg, numpy_model))[0]
     _assert_same_run(fast, ref)      # which checks the invariants of every step
