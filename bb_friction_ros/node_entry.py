@@ -8,6 +8,7 @@ place before that work starts; a signal at any moment of start-up then ends in a
 """
 
 import gc
+import inspect
 import os
 import signal
 import sys
@@ -98,6 +99,13 @@ def main(args=None):
             if _received:               # the signal's exception, re-raised by an extension
                 return 0
             raise
+        # rclpy's first log line (the ready line) finds its caller with inspect.getmodule,
+        # which resolves the path of every module loaded (~1000: 74-121 ms, 9000 lstat
+        # calls).  Started here, in a thread, that overlaps the model's loading (the kernels'
+        # loading releases the GIL): from the node's own ready figure to the line seen by
+        # bench_startup 40 -> 0-10 ms (docs/node_latency.md).
+        threading.Thread(target=inspect.getmodule, args=(inspect.currentframe(),),
+                         name="friction_log_caller_cache", daemon=True).start()
         return node_main(args, on_spin=started)
     finally:
         if was_enabled:
