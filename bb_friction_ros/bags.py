@@ -321,7 +321,7 @@ class MeasuredAligner:
                 self._meas.append(_MeasuredRun(run))
             self._meas[-1].add(stamp, value)
         if self.max_held is not None:
-            held = sum(len(m) for m in self._meas)
+            held = sum(map(len, self._meas))
             while held > self.max_held:
                 oldest = self._meas[0]
                 if len(oldest) <= 1 and len(self._meas) > 1:
@@ -1198,6 +1198,16 @@ class BagWriter:
     def write_raw(self, conn, log_ns, raw):
         """Write already serialised CDR bytes (``conn`` from this writer)."""
         self._batch.append((conn, int(log_ns), raw))
+        if len(self._batch) >= WRITE_BATCH:
+            self.flush()
+
+    def write_many(self, items):
+        """
+        Write (``conn`` from this writer, log time [ns] as an int, CDR bytes) items in order.
+
+        ``write_raw`` for each, in one call (replay's stream writes a block at a time).
+        """
+        self._batch.extend(items)
         if len(self._batch) >= WRITE_BATCH:
             self.flush()
 

@@ -102,14 +102,18 @@ class _Series:
         self.measured = measured
         self._file = tempfile.TemporaryFile()
         self._buf = array("d")
-        self._pending = []      # rows waiting for their measurement
         self.rows = 0
+        self._groups, self._group_sizes = None, None
 
     def add(self, pred):
         """Append one prediction (its measurement comes later through ``measure``)."""
+        groups = pred.groups
+        if groups is not self._groups:
+            # the same groups answer every sample until the next step: counted once
+            self._groups = groups
+            self._group_sizes = (len(groups), max((len(g[0]) for g in groups), default=0))
         row = (pred.stamp_s, pred.torque_total_nm, pred.torque_b2b_nm,
-               pred.nut_velocity_rad_s, pred.axial_load_n, len(pred.groups),
-               max((len(g[0]) for g in pred.groups), default=0))
+               pred.nut_velocity_rad_s, pred.axial_load_n) + self._group_sizes
         if self.measured:
             return row
         self._append(row + (math.nan,))
@@ -226,7 +230,14 @@ def groups_cdr(groups, sec, nanosec, nut_angle_rad, n_balls):
 
 
 class _OutputBag:
-    """friction_node's output topics written beside the copied input, message by message."""
+    """
+    friction_node's output topics written beside the copied input.
+
+    The stream appends (connection, log time [ns], CDR) to ``pending`` in output order (the
+    copy of each input message, then what the node publishes for it) and ``flush`` es once
+    per block: a call per message, and the writer's per-message checks, cost more than the
+    packing itself (issue 20).
+    """
 
     def __init__(self, path, inputs):
         if path.exists():
@@ -235,6 +246,9 @@ class _OutputBag:
         self.bag = BagWriter(path, self.store, storage="mcap")
         self.conns = {topic: self.bag.connection(topic, msgtype)
                       for topic, msgtype in OUTPUT_TOPICS}
+        self._prediction, self._feedforward, self._groups = (
+            self.conns[PREDICTION_TOPIC[0]], self.conns[FEEDFORWARD_TOPIC[0]],
+            self.conns[GROUPS_TOPIC[0]])
         self.copies = {}
         for conn in inputs:
             if conn.topic in self.conns:
@@ -244,32 +258,45 @@ class _OutputBag:
             else:
                 self.copies[conn.id] = self.bag.copy_connection(conn)
         self._last_groups = None
-        self.written = {topic: 0 for topic, _ in OUTPUT_TOPICS}
+        self.pending = []
+        self._answers = self._group_changes = 0
+
+    @property
+    def written(self):
+        """Messages written per output topic."""
+        return {PREDICTION_TOPIC[0]: self._answers, GROUPS_TOPIC[0]: self._group_changes,
+                FEEDFORWARD_TOPIC[0]: self._answers}
 
     def copy(self, conn, log_ns, raw):
+        """Queue the copy of an input message (``log_ns`` an int, as rosbags reads it)."""
         out = self.copies.get(conn.id)
         if out is not None:
-            self.bag.write_raw(out, log_ns, raw)
+            self.pending.append((out, log_ns, raw))
 
     def publish(self, pred, stamp, latency_s):
-        """Write what the node publishes for one prediction, logged at the input stamp."""
+        """Queue what the node publishes for one prediction, logged at the input stamp."""
         sec, nanosec = divmod(stamp, 1_000_000_000)
-        self._write_raw(PREDICTION_TOPIC[0], stamp,
-                        prediction_cdr(pred, sec, nanosec, latency_s))
+        pending = self.pending
+        pending.append((self._prediction, stamp,
+                        prediction_cdr(pred, sec, nanosec, latency_s)))
         # the runner's safe value (held or 0 after a step that did not converge), as the node
-        self._write_raw(FEEDFORWARD_TOPIC[0], stamp, feedforward_cdr(pred.feedforward_nm))
+        pending.append((self._feedforward, stamp, feedforward_cdr(pred.feedforward_nm)))
+        self._answers += 1
         if pred.groups != self._last_groups:
             # The node publishes groups on change (and repeats them on a wall-clock timer,
             # which carries no new information and no input stamp: not reproduced here).
             self._last_groups = pred.groups
-            self._write_raw(GROUPS_TOPIC[0], stamp, groups_cdr(
-                pred.groups, sec, nanosec, pred.nut_angle_rad, pred.n_balls))
+            pending.append((self._groups, stamp, groups_cdr(
+                pred.groups, sec, nanosec, pred.nut_angle_rad, pred.n_balls)))
+            self._group_changes += 1
 
-    def _write_raw(self, topic, stamp, raw):
-        self.bag.write_raw(self.conns[topic], stamp, raw)
-        self.written[topic] += 1
+    def flush(self):
+        """Hand what is queued to the bag writer."""
+        self.bag.write_many(self.pending)
+        self.pending.clear()
 
     def close(self):
+        self.flush()
         self.bag.close()
 
 
@@ -477,13 +504,19 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress,
             fast = block.fast.tolist()
             stamps, stamps_ns = block.stamp_s.tolist(), block.stamp_ns.tolist()
             values, velocities = block.value.tolist(), block.velocity.tolist()
+            logs = [items[i][1] for i, kind in enumerate(kinds) if kind is not None]
+            if logs:
+                log_min, log_max = min(log_min, min(logs)), max(log_max, max(logs))
+            if outbag is not None:
+                copies, pending = outbag.copies, outbag.pending
             for i, kind in enumerate(kinds):
                 if outbag is not None:
-                    outbag.copy(*items[i])
+                    item = items[i]
+                    out_conn = copies.get(item[0].id)
+                    if out_conn is not None:
+                        pending.append((out_conn, item[1], item[2]))
                 if kind is None:
                     continue
-                log_ns = items[i][1]
-                log_min, log_max = min(log_min, log_ns), max(log_max, log_ns)
                 if fast[i]:
                     # decoded with numpy (bags.Block): the node's own checks, inline
                     if kind == "measured_torque":
@@ -514,6 +547,8 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress,
                     answered(pred, stamp_ns(ev), t_in)
             fh.write("".join(lines))
             lines.clear()
+            if outbag is not None:
+                outbag.flush()
         if aligner is not None:
             emit(aligner.finish())
         fh.write("".join(lines))

@@ -274,7 +274,8 @@ def _line(rate, kind, r, load):
                  f"{d.get('nonconverged_steps', '?')}, step "
                  f"{d.get('last_step_s', '?')} s, coarse steps "
                  f"{d.get('coarse_steps', '?')} at {d.get('model_step_deg', '?')} deg, "
-                 f"inline {d.get('answered_inline', '?')} of {d.get('published', '?')}")
+                 f"inline {d.get('answered_inline', '?')} of {d.get('published', '?')}, "
+                 f"fast inputs {d.get('fast_inputs', '?')}")
     return (f"{rate:5.0f} Hz {kind:8s} answered {100 * r['answered_share']:6.2f} % "
             f"p50 {r['p50_ms']:6.2f} ms p99 {r['p99_ms']:6.2f} ms  CPU "
             f"{100 * r['cpu_share']:4.0f} % of a core ({r['cpu_us_per_input']:5.0f}"

@@ -461,3 +461,22 @@ def test_late_samples_and_restarts_are_told_apart(back_s, run, resets):
         runner.process(s)
     assert runner.stats.resets == resets
     assert runner.stats.late_samples == min(run, LATE_SAMPLES_MAX) * (back_s < 0.1)
+
+
+def test_predictions_built_without_init_are_the_dataclass_s_own():
+    """
+    The runner builds its Predictions without the frozen dataclass's __init__ (issue 20: a
+    Prediction per input sample).  They must be the same objects to every user: equal, with
+    equal hashes and repr, every field set, and still frozen.
+    """
+    import dataclasses
+    from bb_friction_ros.runner import _prediction, Prediction
+    values = (100.001, 0.25, 6.28, 1500.0, 0.21, 0.2, 0.01, 0.0, True, 0.0005,
+              (((1, 2), (0.3,)),), 37, False, 0.21, False)
+    assert len(values) == len(dataclasses.fields(Prediction))
+    fast, slow = _prediction(*values), Prediction(*values)
+    assert type(fast) is Prediction
+    assert fast == slow and hash(fast) == hash(slow) and repr(fast) == repr(slow)
+    assert dataclasses.astuple(fast) == values
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        fast.torque_total_nm = 1.0
