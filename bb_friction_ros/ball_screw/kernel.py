@@ -1258,6 +1258,68 @@ def warm_solve(x, u, x_prev, u_prev, f_prev, d_psi_prev, forces, ring_active, d_
     return out, iterations, speed
 
 
+@_jit(exact=True)
+def warm_step(azimuth, ratio, d_psi, track_start, sign, geo, x, u, x_prev, u_prev, f_prev,
+              d_psi_prev, forces, ring_active, cst, k_load, k_axis, on_nut, coef_s, coef_n,
+              grid, scale, axial_load_n, b_r, b_f, c_r, c_f, k_r, k_f, tol, max_it, max_rate,
+              disp_limit, max_changes, budget, omega_n):
+    """
+    A whole warm step of a rigid nut without lead errors in one call (``WholeScrew.step``).
+
+    ``advance``, ``warm_solve`` and ``step_totals`` in turn, with the arrays between them
+    never leaving compiled code, and the step's per-ball outputs built here: the same
+    arithmetic as those three calls and the numpy around them (exact, so the same rounding).
+    geo = (separation, loop length, gap tolerance, theta amplitude, cycles, phase, offset,
+    R_G - R_B, beta0); u, u_prev: the rigid nut's displacement; omega_n: the nut velocity.
+    Measured need (issue 20): the three calls and the Python around them (argument packing,
+    the Solution and its dict, the scatters) cost about 40 us of a 144 us step at N = 37.
+    Returns (converged, budget exhausted, iterations, residual norm, azimuth, phi, theta, x,
+    u, B2B force and active per ring pair, orbit ratio and omega_B per ball, contact loads
+    (N, 4), each ball's axial force on the nut, rear, front and force of the active pairs in
+    chain order, sums of the ball-groove losses, of the nut torques and of the B2B force
+    times slip speed, largest contact load).  Nothing is returned of a failed solve but its
+    flags and iterations: the caller redoes the geometry and cold-starts.
+    """
+    az, phi, theta, centres, pair_idx, rear, front = advance(
+        azimuth, ratio, d_psi, geo[0], geo[1], track_start, geo[2], sign, geo[3], geo[4],
+        geo[5], geo[6], geo[7], geo[8])
+    u_arr = np.empty(1)
+    u_arr[0] = u
+    up_arr = np.empty(1)
+    up_arr[0] = u_prev
+    no_order = np.zeros(0, dtype=np.int64)
+    no_comp = np.zeros(0)
+    out, iterations, speed = warm_solve(
+        x, u_arr, x_prev, up_arr, f_prev, d_psi_prev, forces, ring_active, d_psi, pair_idx,
+        centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid, scale, axial_load_n,
+        rear, front, b_r, b_f, c_r, c_f, k_r, k_f, no_order, no_comp, no_comp, tol, max_it,
+        max_rate, disp_limit, max_changes, budget)
+    xs, us, f_all, active, ok, exhausted, _, norm, terms, per_contact = out
+    n = xs.shape[0]
+    f = f_all * scale
+    loss_sum, torque_sum, b2b_sum, load_max, new_ratio, new_active, new_forces, act \
+        = step_totals(terms[:, 6], terms[:, 7], per_contact[:, :, 0], f, speed, active,
+                      pair_idx, xs, sign)
+    omega_b = np.empty(n)
+    axial = np.empty(n)
+    loads = np.empty((n, 4))
+    for i in range(n):
+        omega_b[i] = new_ratio[i] * omega_n
+        axial[i] = -terms[i, 8]
+        for k in range(4):
+            loads[i, k] = per_contact[i, k, 0]
+    g_rear = np.empty(act.shape[0], dtype=np.int64)
+    g_front = np.empty(act.shape[0], dtype=np.int64)
+    g_force = np.empty(act.shape[0])
+    for j in range(act.shape[0]):
+        g_rear[j] = rear[act[j]]
+        g_front[j] = front[act[j]]
+        g_force[j] = f[act[j]]
+    return (ok, exhausted, iterations, norm, az, phi, theta, xs, us[0], new_forces, new_active,
+            new_ratio, omega_b, loads, axial, g_rear, g_front, g_force, loss_sum, torque_sum,
+            b2b_sum, load_max)
+
+
 def pack_constants(ball, extra_oversize_m=0.0):
     """
     Pack the kernels' constant vector ``cst`` from a ``single_ball.BallGrooveModel``.
