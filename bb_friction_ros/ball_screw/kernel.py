@@ -1264,7 +1264,7 @@ def warm_step(azimuth, ratio, d_psi, track_start, sign, geo, x, u, x_prev, u_pre
               grid, scale, axial_load_n, b_r, b_f, c_r, c_f, k_r, k_f, tol, max_it, max_rate,
               disp_limit, max_changes, budget, omega_n):
     """
-    A whole warm step of a rigid nut without lead errors in one call (``WholeScrew.step``).
+    Take a whole warm step of a rigid nut without lead errors in one call (``WholeScrew.step``).
 
     ``advance``, ``warm_solve`` and ``step_totals`` in turn, with the arrays between them
     never leaving compiled code, and the step's per-ball outputs built here: the same

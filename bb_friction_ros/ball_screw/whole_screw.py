@@ -326,7 +326,7 @@ class WholeScrew:
 
     def _fused_step(self, d_psi, sign, load_sign, omega_n, axial_load_n, budget, t0):
         """
-        A warm step of a rigid nut without lead errors in one compiled call.
+        Take a warm step of a rigid nut without lead errors in one compiled call.
 
         ``kernel.warm_step``: ``advance``, ``_warm_solve`` and ``_finish``'s sums with the same
         arithmetic.  Returns (StepResult, iterations), or (None, iterations) when the solve
