@@ -671,7 +671,8 @@ def physical_section(args):
                              if not x["separated"]],
                "snr": effect_rms / noise_std, "evidence": evidence, "price": price,
                "evidence_beside": evidence_beside,
-               "phys_wall": a.physical.wall_s}
+               "phys_wall": a.physical.wall_s,
+               "interval": choice.interval_95 if choice else None}
         rows.append(row)
         print(f"  hidden {kind or '(empirical only)'} {'' if true is None else f'{true:.4g}'}"
               f" + {', '.join(terms.names) or '-'}: named {got or '-'}"
@@ -685,8 +686,17 @@ def physical_section(args):
     phys = [r for r in rows if r["hidden"]]
     emp = [r for r in rows if not r["hidden"]]
     named = [r for r in phys if r["named"] == r["hidden"]]
-    print(f"named: {len(named)}/{len(phys)} = {len(named) / max(len(phys), 1):.0%} (goal "
-          ">= 90 %)")
+    right = [r for r in named if within_tolerance(r)]
+    print(f"named: {len(named)}/{len(phys)} = {len(named) / max(len(phys), 1):.0%}; named "
+          f"and within tolerance (theta +-{THETA_TARGET_DEG} deg, mu +-"
+          f"{MU_TARGET_RELATIVE:.0%}): {len(right)}/{len(phys)} = "
+          f"{len(right) / max(len(phys), 1):.0%} (goal >= 90 %)")
+    off = [r for r in named if not within_tolerance(r)]
+    for r in off:
+        print(f"  named off tolerance: {r['hidden']} {r['true']:.4g} named {r['value']:.4g} "
+              f"(95 %: {r['interval'][0]:.4g}-{r['interval'][1]:.4g}, covers the truth: "
+              f"{r['interval'][0] <= r['true'] <= r['interval'][1]}); ambiguous pairs "
+              f"reported: {r['ambiguous'] or '-'}")
     seen = [r for r in phys if r["snr"] >= 1.0]
     print(f"named where the hidden change's rms (fit part) is at least the noise std: "
           f"{sum(r['named'] == r['hidden'] for r in seen)}/{len(seen)}")
@@ -727,6 +737,15 @@ def physical_section(args):
         physical_timing(cache)
 
 
+def within_tolerance(r):
+    """Tell whether a named physical value is within issue 21's tolerance of the truth."""
+    if r["hidden"] == "contact_angle_deviation":
+        return abs(r["value"] - r["true"]) <= THETA_TARGET_DEG
+    if r["hidden"] == "friction_coefficient":
+        return abs(r["value"] / r["true"] - 1.0) <= MU_TARGET_RELATIVE
+    return True           # the issue sets no tolerance for the preload; its error is printed
+
+
 def beside_hidden(d, rec, n_fit, terms, settings):
     """Return |M d|^2: ``d`` (fit part) less its projection on the hidden terms' columns."""
     from bb_friction_ros.discrepancy.data import inputs_of
@@ -764,19 +783,24 @@ def physical_timing(cache):
     analyse(rec, settings)
     plain = time.perf_counter() - t0
     print(f"  empirical terms only: {plain:.1f} s (load {os.getloadavg()[0]:.1f})")
-    for workers in (1, 2):
+    # local: the trial runs of a batch in 2 threads (the kernels release the GIL) and in 1;
+    # then a Dask LocalCluster of 2 worker processes
+    for how, workers, threads in (("local, 2 threads", 1, 2), ("local, 1 thread", 1, 1),
+                                  ("Dask LocalCluster, 2 workers", 2, 1)):
+        load0 = os.getloadavg()[0]
         t0 = time.perf_counter()
         a = analyse(rec, settings, ph.PhysicsContext(
-            cfg, runner, ph.PhysicalSettings(enabled=True, workers=workers)))
+            cfg, runner, ph.PhysicalSettings(enabled=True, workers=workers, threads=threads)))
         wall = time.perf_counter() - t0
         c = ph.chosen(a.physical)
-        print(f"  with physical candidates, {'local' if workers == 1 else 'Dask LocalCluster'}"
-              f" ({workers} worker{'s' if workers > 1 else ''}): {wall:.1f} s "
-              f"(goal <= 60 s), {a.physical.runs} model runs taking "
+        print(f"  with physical candidates, {how}: {wall:.1f} s (goal <= 60 s), "
+              f"{a.physical.runs} model runs ({a.physical.coarse_runs} at the "
+              f"{a.physical.coarse_step_factor}x coarser step) taking "
               f"{a.physical.wall_s:.1f} s, {a.physical.selections} empirical selections and "
               f"the rest {wall - a.physical.wall_s:.1f} s; named {c.kind.name if c else '-'} "
               f"{'' if c is None else f'{c.value:.3g}'} (hidden 2.5); ratio to empirical "
-              f"only {wall / plain:.1f}x; load {os.getloadavg()[0]:.1f}", flush=True)
+              f"only {wall / plain:.1f}x; load {load0:.1f} -> {os.getloadavg()[0]:.1f}",
+              flush=True)
 
 
 if __name__ == "__main__":

@@ -393,21 +393,18 @@ class WholeScrew:
         """Store the state and build the StepResult."""
         b = self.model.ball
         self._state = (sol.x, sol.u, sign, 1.0 if axial_load_n >= 0.0 else -1.0)
-        self.ratio = sol.x[:, 2] * sign
-        self._active = np.zeros(self.n, dtype=bool)
-        self._active[pair_idx] = sol.active
-        self._forces = np.zeros(self.n)
-        self._forces[pair_idx] = sol.forces
+        t = sol.terms
+        loss_sum, torque_sum, b2b_sum, load_max, self.ratio, self._active, self._forces, act \
+            = kernel.step_totals(t["loss"], t["nut_torque"], t["load"], sol.forces,
+                                 sol.b2b_speed, sol.active, pair_idx, sol.x, float(sign))
         abs_w = abs(omega_n)
-        groove_loss = float(sol.terms["loss"].sum()) * abs_w
-        b2b_loss = float(b.mu * np.dot(sol.forces, sol.b2b_speed)) * abs_w \
-            if pair_idx.size else 0.0
-        torque = float(sol.terms["nut_torque"].sum()) - axial_load_n * b.r_gear
+        groove_loss = loss_sum * abs_w
+        b2b_loss = b.mu * b2b_sum * abs_w
+        torque = torque_sum - axial_load_n * b.r_gear
         loss = groove_loss + b2b_loss
         drive = omega_n * torque
         groups = []
         chain_ids, chain_f = [], []
-        act = np.flatnonzero(sol.active) if pair_idx.size else pair_idx
         for r, f, force in zip(rear[act].tolist(), front[act].tolist(),
                                sol.forces[act].tolist()):
             if chain_ids and chain_ids[-1] == r:
@@ -430,7 +427,6 @@ class WholeScrew:
             groups=groups, ball_axial_loads_n=-sol.terms["axial"].copy(),
             # Per contact only for a solution: an unconverged iterate's loads mean nothing,
             # and its load |W| already passed the range check in ``step``.
-            in_load_range=bool(not sol.converged
-                               or sol.terms["load"].max() <= self.max_contact_load_n),
+            in_load_range=bool(not sol.converged or load_max <= self.max_contact_load_n),
             iterations=sol.iterations,
             solve_time_s=time.perf_counter() - t0)
