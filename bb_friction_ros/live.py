@@ -122,6 +122,12 @@ class LiveSchedule:
         self.ready = False
         self._stop = False
         self._thread = None
+        # True when the caller's input thread calls flush() whenever it finds no input
+        # waiting (ros_inputs.InputTaker): changed groups and a profile's hand-off then wait
+        # for that, not delaying an input that arrived during a step (docs/node_latency.md)
+        self.defer_to_idle = False
+        self._deferred_groups = False
+        self._deferred_seed = None
 
     def _apply(self, params):
         self._params = params
@@ -165,7 +171,7 @@ class LiveSchedule:
         """Return True when no input waits or is being stepped and no profile waits or runs."""
         with self._lock:
             return not (self._queue or self._busy or self._stepping or self._profiling
-                        or self._profile_seed is not None)
+                        or self._profile_seed is not None or self.deferred)
 
     # --- inputs ---------------------------------------------------------------------------
     def on_nut_state(self, stamp_s, names, positions, velocities, recv_ns, stamp,
@@ -225,10 +231,26 @@ class LiveSchedule:
             if runner.stats.resets != resets:
                 self._reset_warning(runner.stats.resets, sample.stamp_s)
             if self._profile_wanted(runner, pred, sample):
-                seed = (runner.profile_seed(sample), stamp)
-                with self._lock:
-                    self._profile_seed = seed
-                    self._wake.notify()
+                # captured now (the next input may step the runner), handed over when idle
+                self._deferred_seed = (runner.profile_seed(sample), stamp)
+                if not self.defer_to_idle:
+                    self.flush()
+
+    @property
+    def deferred(self):
+        """Whether ``flush`` has work: changed groups to publish or a profile to hand over."""
+        return self._deferred_groups or self._deferred_seed is not None
+
+    def flush(self):
+        """Publish changed groups and hand a profile's seed to the model thread (if any)."""
+        if self._deferred_groups:
+            self._deferred_groups = False
+            self.publish_groups()
+        seed, self._deferred_seed = self._deferred_seed, None
+        if seed is not None:
+            with self._lock:
+                self._profile_seed = seed
+                self._wake.notify()
 
     def _behind(self, runner, sample, newest):
         """
@@ -272,7 +294,9 @@ class LiveSchedule:
             self._latest = pred
             self._latest_stamp = stamp
             changed = pred.groups is not self._last_groups and pred.groups != self._last_groups
-        if changed:
+        if changed and thread == INLINE and self.defer_to_idle:
+            self._deferred_groups = True            # published by flush()
+        elif changed:
             self.publish_groups()
 
     def publish_groups(self):

@@ -64,6 +64,11 @@ def _model_file(params):
     return params.config_file or bundled_config("ball_screw.yaml")
 
 
+def _joint_state(msg):
+    s = msg.header.stamp        # (stamp [s], names, positions, velocities)
+    return s.sec + 1e-9 * s.nanosec, msg.name, msg.position, msg.velocity
+
+
 class FrictionNode(Node):
     """Live friction prediction; see the module docstring for topics."""
 
@@ -99,7 +104,8 @@ class FrictionNode(Node):
                          p.max_model_step_deg),
             InputAssembler(p.nut_joint, p.max_axial_load_n), p,
             Outputs(answer=self._answer, groups=self._publish_groups,
-                    profile=self._publish_profile, log=self._log))
+                    profile=self._publish_profile,    # log: level "info", "warning", ...
+                    log=lambda level, text: getattr(self.get_logger(), level)(text)))
         # sensor-data semantics (best effort, volatile); inputs wait here while we step
         qos = QoSProfile(depth=p.queue_size, durability=DurabilityPolicy.VOLATILE,
                          reliability=(ReliabilityPolicy.RELIABLE if p.reliable_qos
@@ -115,7 +121,9 @@ class FrictionNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
         self.live.start()
-        self._taker = InputTaker(self, *self._inputs, self._on_axial_load, self._on_nut_state)
+        self._taker = InputTaker(self, *self._inputs, self._on_axial_load, self._on_nut_state,
+                                 self.live)
+        self.live.defer_to_idle = self._taker.fast      # it flushes only on the fast path
         age = process_age_s()
         self.get_logger().info("ready: model built and warm" + (
             f", {age:.2f} s after launch" if age is not None else "")
@@ -123,13 +131,9 @@ class FrictionNode(Node):
 
     # --- inputs and outputs (the schedule is live.LiveSchedule) ----------------------------
     def _on_nut_state(self, msg, recv_ns, newest=None):
-        stamp = msg.header.stamp     # newest: a later nut_state already taken (InputTaker)
-        waiting = False
-        if newest is not None:
-            s = newest.header.stamp
-            waiting = (s.sec + 1e-9 * s.nanosec, newest.name, newest.position, newest.velocity)
-        self.live.on_nut_state(stamp.sec + 1e-9 * stamp.nanosec, msg.name, msg.position,
-                               msg.velocity, recv_ns, stamp, waiting)
+        # newest: a later nut_state already taken (InputTaker), for the hand-off rule
+        self.live.on_nut_state(*_joint_state(msg), recv_ns, msg.header.stamp,
+                               False if newest is None else _joint_state(newest))
 
     def _on_axial_load(self, msg):
         self.live.on_axial_load(msg.wrench.force.z)
@@ -160,9 +164,6 @@ class FrictionNode(Node):
                                    b2b_forces_n=[float(f) for f in forces])
                       for ids, forces in pred.groups]
         self._pub_groups.publish(msg)
-
-    def _log(self, level, text):
-        getattr(self.get_logger(), level)(text)      # "info", "warning", "error"
 
     def diagnostics_values(self, advance=True):
         """Return (the diagnostics key/values, converged); ``advance`` starts a new window."""

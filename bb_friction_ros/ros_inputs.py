@@ -58,14 +58,17 @@ class InputTaker:
     ``recv_ns`` is the middleware's receive time (``time.time_ns`` scale), ``newest`` the
     newest nut_state taken with it and still to come (None: none; the executor's path, which
     takes one message at a time, never knows).  The subscriptions must have been created
-    with callbacks that call the same handlers (the executor's path).
+    with callbacks that call the same handlers (the executor's path).  ``idle``: an object
+    with ``deferred`` (bool) and ``flush()``, flushed whenever the thread finds no input
+    waiting while it has deferred work (the fast path only; ``fast`` tells).
     """
 
-    def __init__(self, node, load_sub, state_sub, on_load, on_state):
+    def __init__(self, node, load_sub, state_sub, on_load, on_state, idle=None):
         """Check the fast path; take it, or warn and leave the subscriptions to rclpy."""
         self._node = node
         self._subs = (load_sub, state_sub)
         self._handlers = (on_load, on_state)
+        self._idle = idle
         self._stop = False
         self._thread = None
         self.missing = fast_path_missing(node, self._subs)
@@ -100,14 +103,18 @@ class InputTaker:
         events = self._events
         context = self._node.context
         wait_set = impl.WaitSet(2, 0, 0, 0, 0, len(events), context.handle)
+        idle = self._idle
         while not self._stop:
+            # deferred work (changed groups, a profile's hand-off): look without waiting
+            # first, so an input that came during a step is answered before it
+            pending = idle is not None and idle.deferred
             try:
                 wait_set.clear_entities()
                 wait_set.add_subscription(load_sub.handle)
                 wait_set.add_subscription(state_sub.handle)
                 for handler in events:
                     handler.add_to_wait_set(wait_set)
-                wait_set.wait(WAIT_TIMEOUT_NS)
+                wait_set.wait(0 if pending else WAIT_TIMEOUT_NS)
                 for handler in events:
                     if handler.is_ready(wait_set):
                         info = handler.take_data()
@@ -125,6 +132,9 @@ class InputTaker:
                 if self._stop or not context.ok():
                     return
                 raise
+            if pending and not batch:
+                idle.flush()
+                continue
             # arrival order across the two topics, as a recorder (and replay) sees them
             batch.sort(key=lambda item: item[0])
             states = [got[0] for _, is_state, got in batch if is_state]

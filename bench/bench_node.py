@@ -208,6 +208,7 @@ NODE_COMMANDS = {
     "noprofile": ([sys.executable, _DIAG], {"BENCH_NO_PROFILE": "1"}),
     "traced": ([sys.executable, _DIAG], {}),
     "handoff": ([sys.executable, _DIAG], {"BENCH_HANDOFF_ALL": "1"}),
+    "nodefer": ([sys.executable, _DIAG], {"BENCH_NO_DEFER": "1"}),
 }
 
 
@@ -297,7 +298,9 @@ def main():
                     help="nodes per round; diagnostics (bench/diag_node.py): 'edge' = "
                          "friction_node with the model's step made free, 'noprofile' = no "
                          "look-ahead profiles, 'handoff' = every due step with inputs waiting "
-                         "handed to the model thread (the rule before 2026-11-25), 'traced' = "
+                         "handed to the model thread (the rule before 2026-11-25), 'nodefer' = "
+                         "groups and profile hand-off right after a step (before "
+                         "2026-11-25), 'traced' = "
                          "as shipped")
     ap.add_argument("--trace", metavar="DIR",
                     help="run friction_node and the diagnostic kinds through "

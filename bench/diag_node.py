@@ -12,6 +12,8 @@ diagnostics) except what the environment asks for:
 - ``BENCH_NO_PROFILE=1``: no look-ahead profile is computed (the model thread only steps).
 - ``BENCH_HANDOFF_ALL=1``: every due step with inputs waiting behind it goes to the model
   thread (the rule before 2026-11-25), not only when the model is behind.
+- ``BENCH_NO_DEFER=1``: changed groups and a profile's hand-off right after the stepped
+  answer (the rule before 2026-11-25), not when the input thread is idle.
 - ``BENCH_TRACE=path``: for every nut_state, the middleware's receipt, the moment the
   schedule got it (``LiveSchedule.on_nut_state``), the moment its answer was published and
   by which thread, and when the node's other work ran (look-ahead profiles, contact groups,
@@ -125,6 +127,8 @@ if os.environ.get("BENCH_NO_PROFILE") == "1":
     _no_profile()
 if os.environ.get("BENCH_HANDOFF_ALL") == "1":
     live.LiveSchedule._behind = lambda self, runner, sample, newest: True
+if os.environ.get("BENCH_NO_DEFER") == "1":
+    live.LiveSchedule.defer_to_idle = property(lambda self: False, lambda self, value: None)
 if os.environ.get("BENCH_TRACE"):
     _trace(os.environ["BENCH_TRACE"])
 

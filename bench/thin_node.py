@@ -43,13 +43,15 @@ class ThinNode(Node):
 def main():
     """Spin until SIGINT/SIGTERM (rclpy's own signal handlers shut the context down)."""
     rclpy.init()
-    node = ThinNode()
-    try:
+    node = None
+    try:        # a signal may come as soon as the subscription exists (bench_startup)
+        node = ThinNode()
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        node.destroy_node()
+        if node is not None:
+            node.destroy_node()
         rclpy.try_shutdown()
     return 0
 

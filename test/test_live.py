@@ -384,3 +384,36 @@ def test_ready_means_compiled_nothing_compiles_in_the_live_path():
             look_ahead_profile(runner.profile_seed(s), 2.0, 3)
     after = {name: len(f.signatures) for name, f in dispatchers.items()}
     assert after == before
+
+
+def test_changed_groups_and_profiles_wait_for_the_input_thread_to_be_idle():
+    """
+    With ``defer_to_idle`` (the node's fast input path), a step's changed contact groups and
+    its profile's hand-off wait for ``flush`` (called when no input waits), so an input
+    that came during the step is answered first.  The answers are replay's all the same,
+    and after each flush the groups and profiles are what the immediate path publishes.
+    """
+    events = short_recording(state_rate_hz=500.0)
+    runs = {}
+    for defer in (False, True):
+        live, rec = schedule()
+        live.defer_to_idle = defer
+        held_back = 0
+        try:
+            for ev in events:
+                groups = len(rec.groups)
+                feed(live, [ev], wait_idle=not defer)
+                if defer and live.deferred:
+                    held_back += 1
+                    assert len(rec.groups) == groups        # nothing new published yet
+                    live.flush()
+                    assert not live.deferred
+                    wait_until(live.idle)
+        finally:
+            live.stop()
+        runs[defer] = rec, held_back
+    (now, _), (later, held_back) = runs[False], runs[True]
+    assert held_back > 0
+    assert [(a[0], a[1]) for a in later.answers] == [(a[0], a[1]) for a in now.answers]
+    assert [(p.groups, s) for p, s in later.groups] == [(p.groups, s) for p, s in now.groups]
+    assert [p[1:] for p in later.profiles] == [p[1:] for p in now.profiles]

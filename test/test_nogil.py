@@ -7,7 +7,7 @@ the length of a solve.
 
 Two checks.  Every compiled function of the kernel modules is declared ``nogil`` (a new
 kernel written with a bare ``numba.njit`` fails it).  And, functionally, a counting thread
-makes progress while ``kernel.warm_solve`` (the warm step's one compiled call) runs in
+makes progress while ``kernel.warm_step`` (the rigid warm step's one compiled call) runs in
 another thread: this also catches machine code loaded from a numba cache that was compiled
 before the flag was set (numba's cache key does not include the flags).  Not timed: the
 count is taken only between "entered" and "left" markers around the compiled call; a
@@ -68,7 +68,7 @@ def test_a_python_thread_runs_while_the_warm_step_solves(monkeypatch):
 
     state = {"inside": False, "count": 0, "stop": False}
     progressed = []
-    real = kernel.warm_solve
+    real = kernel.warm_step
 
     def watched(*args):
         state["count"] = 0
@@ -83,7 +83,7 @@ def test_a_python_thread_runs_while_the_warm_step_solves(monkeypatch):
             if state["inside"]:
                 state["count"] += 1
 
-    monkeypatch.setattr(kernel, "warm_solve", watched)
+    monkeypatch.setattr(kernel, "warm_step", watched)
     # A long switch interval: the interpreter then hands the GIL to the counter only when the
     # worker releases it (a nogil kernel) or rarely by force (every SWITCH_S).  With the
     # default 5 ms a forced switch often fell inside the dispatcher's own Python code
@@ -96,10 +96,12 @@ def test_a_python_thread_runs_while_the_warm_step_solves(monkeypatch):
     try:
         # Until the counter has moved inside WANTED solves, at most CALLS solves: a kernel
         # holding the GIL runs all CALLS with (almost) no progress.
-        k = 4
-        while sum(progressed) < WANTED and len(progressed) < CALLS:
+        # (Bounded by steps, not by calls seen: a step that no longer goes through the
+        # watched call must fail, not loop for ever.)
+        for k in range(4, 4 + CALLS):
+            if sum(progressed) >= WANTED:
+                break
             assert screw.step(k * step, omega, load, 0.01).converged
-            k += 1
     finally:
         state["stop"] = True
         counter.join()

@@ -55,8 +55,12 @@ _LAST_FACTOR = 5e2
 
 
 @_jit
-def _map_eval(coef, t, h, n_pol, n_az, dtm, dhm, val, dvt, dvh):
-    """Bicubic patch of FrictionMapSphere at (t, h): values and t-, h-derivatives."""
+def _map_eval(coef, t, h, n_pol, n_az, dtm, dhm, val, dvt, dvh, deriv):
+    """
+    Bicubic patch of FrictionMapSphere at (t, h): values and (``deriv``) t-, h-derivatives.
+
+    h in (-pi, pi] (an atan2).
+    """
     if t < 0.0:
         t = 0.0
     elif t > math.pi:
@@ -66,7 +70,8 @@ def _map_eval(coef, t, h, n_pol, n_az, dtm, dhm, val, dvt, dvh):
     if i0 > n_pol - 1:
         i0 = n_pol - 1
     sx = xx - i0
-    yy = (h % _TWO_PI) / dhm
+    # h mod 2 pi for h in (-pi, pi], as the modulo rounds it, without its fmod.
+    yy = (h + _TWO_PI if h < 0.0 else h) / dhm
     j0 = int(yy)
     if j0 > n_az - 1:
         j0 = n_az - 1
@@ -84,11 +89,13 @@ def _map_eval(coef, t, h, n_pol, n_az, dtm, dhm, val, dvt, dvh):
         qv1 = c[0, b + 1] + c[1, b + 1] * sy + c[2, b + 1] * sy2 + c[3, b + 1] * sy3
         qv2 = c[0, b + 2] + c[1, b + 2] * sy + c[2, b + 2] * sy2 + c[3, b + 2] * sy3
         qv3 = c[0, b + 3] + c[1, b + 3] * sy + c[2, b + 3] * sy2 + c[3, b + 3] * sy3
+        val[o] = qv0 + qv1 * sx + qv2 * sx2 + qv3 * sx3
+        if not deriv:
+            continue
         qd0 = c[1, b] + 2.0 * c[2, b] * sy + 3.0 * c[3, b] * sy2
         qd1 = c[1, b + 1] + 2.0 * c[2, b + 1] * sy + 3.0 * c[3, b + 1] * sy2
         qd2 = c[1, b + 2] + 2.0 * c[2, b + 2] * sy + 3.0 * c[3, b + 2] * sy2
         qd3 = c[1, b + 3] + 2.0 * c[2, b + 3] * sy + 3.0 * c[3, b + 3] * sy2
-        val[o] = qv0 + qv1 * sx + qv2 * sx2 + qv3 * sx3
         dvt[o] = (qv1 + 2.0 * qv2 * sx + 3.0 * qv3 * sx2) / dtm
         dvh[o] = (qd0 + qd1 * sx + qd2 * sx2 + qd3 * sx3) / dhm
 
@@ -105,8 +112,8 @@ def evaluate_balls(x, u, u_ball, centres, sign, cst, k_load, k_axis, on_nut, coe
     n_azimuth, dt, dh).  Writes res (N, 6) = [force, moment / R_B] / scale, jac (N, 6, 7),
     dax (N, 7) = d(axial) / scale; terms (N, 10) = force (3), moment (3), loss, nut torque,
     axial force, 0; per_contact (N, 4, 3) = load, loss and the contact angle, which only
-    ``contact_angles`` writes (an output of the solution, not needed by Newton: 148 atan2
-    per evaluation at N = 37).  Returns the summed axial force [N].
+    ``contact_angles`` writes, on demand (no output of the model reads it: 148 atan2 per
+    solve at N = 37, so ``newton`` does not compute it).  Returns the summed axial force [N].
     """
     lam, r_b, ca, sa, ell, mu, free, r_gear = (cst[0], cst[1], cst[2], cst[3], cst[4],
                                                cst[5], cst[6], cst[7])
@@ -173,9 +180,9 @@ def evaluate_balls(x, u, u_ball, centres, sign, cst, k_load, k_axis, on_nut, coe
             t = math.atan2(rho, w)
             h = math.atan2(ry, rx)
             if k < 2:
-                _map_eval(coef_s, t, h, n_pol, n_az, dtm, dhm, val, dvt, dvh)
+                _map_eval(coef_s, t, h, n_pol, n_az, dtm, dhm, val, dvt, dvh, want_jac)
             else:
-                _map_eval(coef_n, t, h, n_pol, n_az, dtm, dhm, val, dvt, dvh)
+                _map_eval(coef_n, t, h, n_pol, n_az, dtm, dhm, val, dvt, dvh, want_jac)
             fx, fy, mm, pp = val[0], val[1], val[2], val[3]
             p_ = mu * q
             am = a * mm
@@ -647,6 +654,48 @@ def pair_speed(x, rear, front, b_r, b_f):
 
 
 @_jit
+def step_totals(loss, nut_torque, load, forces, speed, active, pair_idx, x, sign):
+    """
+    Sum and scatter what ``WholeScrew._finish`` needs, in one call.
+
+    Measured need (issue 20): the eight numpy calls it replaces cost about 10 us of a step at
+    N = 37.  Returns (sum of the ball-groove losses, sum of the nut torques, sum of the B2B
+    force times slip speed, largest contact load, orbit ratio x[:, 2] sign per ball, active
+    and force per ring pair, indices of the active candidate pairs).
+    """
+    n = x.shape[0]
+    loss_sum = 0.0
+    torque_sum = 0.0
+    load_max = -np.inf
+    for i in range(n):
+        loss_sum += loss[i]
+        torque_sum += nut_torque[i]
+        for k in range(load.shape[1]):
+            load_max = max(load_max, load[i, k])
+    b2b = 0.0
+    for c in range(forces.shape[0]):
+        b2b += forces[c] * speed[c]
+    ratio = np.empty(n)
+    for i in range(n):
+        ratio[i] = x[i, 2] * sign
+    ring_active = np.zeros(n, dtype=np.bool_)
+    ring_forces = np.zeros(n)
+    count = 0
+    for c in range(pair_idx.shape[0]):
+        ring_active[pair_idx[c]] = active[c]
+        ring_forces[pair_idx[c]] = forces[c]
+        if active[c]:
+            count += 1
+    act = np.empty(count, dtype=np.int64)
+    count = 0
+    for c in range(pair_idx.shape[0]):
+        if active[c]:
+            act[count] = c
+            count += 1
+    return loss_sum, torque_sum, b2b, load_max, ratio, ring_active, ring_forces, act
+
+
+@_jit
 def theta_centres(phi, amplitude, cycles, phase, offset, eccentricity, beta0):
     """
     theta(phi) and the arc centres (N, 4, 2) without lead errors, in one pass.
@@ -1006,7 +1055,6 @@ def newton(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_
                             coef_s, coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f,
                             c_r, c_f, k_r, k_f, order, comp_a, comp_b, cur, True)
     if not (elastic or ok_chain):
-        _angles(elastic, x, u, centres, cst, on_nut, cur[4])
         return x, u, fhat, False, 0, norm, cur[3], cur[4], cur[7]
     nb = 9 if elastic else 7
     xs = np.empty((n, nb, nb + 2))
@@ -1043,7 +1091,6 @@ def newton(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_
                 big_r = max(big_r, abs(dx[i, j]))
         big = max(big_r / max_rate, big_d / disp_limit)
         if not math.isfinite(big):
-            _angles(elastic, x, u, centres, cst, on_nut, cur[4])
             return x, u, fhat, False, it, norm, cur[3], cur[4], cur[7]
         step = 1.0 / big if big > 1.0 else 1.0
         nn = norm
@@ -1080,17 +1127,7 @@ def newton(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_
         axial = ax_n
         norm = nn
         cur, trial = trial, cur
-    _angles(elastic, x, u, centres, cst, on_nut, cur[4])
     return x, u, fhat, norm <= tol, it, norm, cur[3], cur[4], cur[7]
-
-
-@_jit
-def _angles(elastic, x, u, centres, cst, on_nut, per_contact):
-    """``contact_angles`` of ``newton``'s solution (u: shared (1,) or per ball (N,))."""
-    if elastic:
-        contact_angles(x, 0.0, u, centres, cst, on_nut, per_contact)
-    else:
-        contact_angles(x, u[0], np.zeros(x.shape[0]), centres, cst, on_nut, per_contact)
 
 
 @_jit(exact=True)
@@ -1219,6 +1256,68 @@ def warm_solve(x, u, x_prev, u_prev, f_prev, d_psi_prev, forces, ring_active, d_
         iterations += out[6]
     speed = pair_speed(out[0], rear, front, b_r, b_f)
     return out, iterations, speed
+
+
+@_jit(exact=True)
+def warm_step(azimuth, ratio, d_psi, track_start, sign, geo, x, u, x_prev, u_prev, f_prev,
+              d_psi_prev, forces, ring_active, cst, k_load, k_axis, on_nut, coef_s, coef_n,
+              grid, scale, axial_load_n, b_r, b_f, c_r, c_f, k_r, k_f, tol, max_it, max_rate,
+              disp_limit, max_changes, budget, omega_n):
+    """
+    Take a whole warm step of a rigid nut without lead errors in one call (``WholeScrew.step``).
+
+    ``advance``, ``warm_solve`` and ``step_totals`` in turn, with the arrays between them
+    never leaving compiled code, and the step's per-ball outputs built here: the same
+    arithmetic as those three calls and the numpy around them (exact, so the same rounding).
+    geo = (separation, loop length, gap tolerance, theta amplitude, cycles, phase, offset,
+    R_G - R_B, beta0); u, u_prev: the rigid nut's displacement; omega_n: the nut velocity.
+    Measured need (issue 20): the three calls and the Python around them (argument packing,
+    the Solution and its dict, the scatters) cost about 40 us of a 144 us step at N = 37.
+    Returns (converged, budget exhausted, iterations, residual norm, azimuth, phi, theta, x,
+    u, B2B force and active per ring pair, orbit ratio and omega_B per ball, contact loads
+    (N, 4), each ball's axial force on the nut, rear, front and force of the active pairs in
+    chain order, sums of the ball-groove losses, of the nut torques and of the B2B force
+    times slip speed, largest contact load).  Nothing is returned of a failed solve but its
+    flags and iterations: the caller redoes the geometry and cold-starts.
+    """
+    az, phi, theta, centres, pair_idx, rear, front = advance(
+        azimuth, ratio, d_psi, geo[0], geo[1], track_start, geo[2], sign, geo[3], geo[4],
+        geo[5], geo[6], geo[7], geo[8])
+    u_arr = np.empty(1)
+    u_arr[0] = u
+    up_arr = np.empty(1)
+    up_arr[0] = u_prev
+    no_order = np.zeros(0, dtype=np.int64)
+    no_comp = np.zeros(0)
+    out, iterations, speed = warm_solve(
+        x, u_arr, x_prev, up_arr, f_prev, d_psi_prev, forces, ring_active, d_psi, pair_idx,
+        centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid, scale, axial_load_n,
+        rear, front, b_r, b_f, c_r, c_f, k_r, k_f, no_order, no_comp, no_comp, tol, max_it,
+        max_rate, disp_limit, max_changes, budget)
+    xs, us, f_all, active, ok, exhausted, _, norm, terms, per_contact = out
+    n = xs.shape[0]
+    f = f_all * scale
+    loss_sum, torque_sum, b2b_sum, load_max, new_ratio, new_active, new_forces, act \
+        = step_totals(terms[:, 6], terms[:, 7], per_contact[:, :, 0], f, speed, active,
+                      pair_idx, xs, sign)
+    omega_b = np.empty(n)
+    axial = np.empty(n)
+    loads = np.empty((n, 4))
+    for i in range(n):
+        omega_b[i] = new_ratio[i] * omega_n
+        axial[i] = -terms[i, 8]
+        for k in range(4):
+            loads[i, k] = per_contact[i, k, 0]
+    g_rear = np.empty(act.shape[0], dtype=np.int64)
+    g_front = np.empty(act.shape[0], dtype=np.int64)
+    g_force = np.empty(act.shape[0])
+    for j in range(act.shape[0]):
+        g_rear[j] = rear[act[j]]
+        g_front[j] = front[act[j]]
+        g_force[j] = f[act[j]]
+    return (ok, exhausted, iterations, norm, az, phi, theta, xs, us[0], new_forces, new_active,
+            new_ratio, omega_b, loads, axial, g_rear, g_front, g_force, loss_sum, torque_sum,
+            b2b_sum, load_max)
 
 
 def pack_constants(ball, extra_oversize_m=0.0):

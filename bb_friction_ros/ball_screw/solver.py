@@ -56,10 +56,15 @@ def _solve_blocks(a, b):
 
 
 def kernel_terms(terms, per_contact):
-    """Return the kernels' (N, 10) ball and (N, 4, 3) contact terms as ``evaluate``'s dict."""
+    """
+    Return the kernels' (N, 10) ball and (N, 4, 3) contact terms as ``evaluate``'s dict.
+
+    Without "angle": the compiled solve does not compute the contact angles, which no output
+    reads (``kernel.contact_angles`` on demand).
+    """
     return {"force": terms[:, 0:3], "moment": terms[:, 3:6], "loss": terms[:, 6],
             "nut_torque": terms[:, 7], "axial": terms[:, 8], "load": per_contact[..., 0],
-            "contact_loss": per_contact[..., 1], "angle": per_contact[..., 2]}
+            "contact_loss": per_contact[..., 1]}
 
 
 @dataclass

@@ -152,6 +152,10 @@ class WholeScrew:
         self._plain_theta = None if (e.screw_lead_error_amplitude_m or e.nut_lead_error_m) \
             else (e.theta_amplitude_rad, e.theta_cycles_per_rev, e.theta_phase_rad,
                   e.theta_offset_rad, b.r_groove - b.r_b, b.beta0)
+        # kernel.warm_step's geometry (no lead errors): separation, loop, gap tolerance, theta.
+        self._geo = None if self._plain_theta is None else np.array(
+            (self.separation, self.loop, config.solver.gap_tolerance_rad) + self._plain_theta,
+            dtype=float)
         if self.n * self.separation >= self.loop:
             raise ValueError(
                 f"ball_screw.track.n_balls: {self.n} balls need "
@@ -264,6 +268,22 @@ class WholeScrew:
             return self._zero_result(omega_n, axial_load_n, dt_s,
                                      in_range=omega_n == 0.0 or unloaded)
         sign = 1.0 if omega_n > 0.0 else -1.0
+        load_sign = 1.0 if axial_load_n >= 0.0 else -1.0
+        budget = self.config.solver.realtime_max_iterations or None
+        warm_ok = (self._state is not None and self._state[2] == sign
+                   and self._state[3] == load_sign)
+        iterations = 0
+        if (warm_ok and self._geo is not None and self.model.solver.use_kernel
+                and self.config.load_distribution == "rigid"
+                and getattr(self._warm_solve, "__func__", None) is _COMPILED_WARM_SOLVE):
+            # The whole warm step in one compiled call (kernel.warm_step).  Not when
+            # _warm_solve was replaced (the numpy reference, in tests): that takes the path
+            # below, of which this is the compiled form.
+            result, iterations = self._fused_step(d_psi, sign, load_sign, omega_n, axial_load_n,
+                                                  budget, t0)
+            if result is not None:
+                return result
+            warm_ok = False     # failed from every guess: the path below cold-starts
         if self._plain_theta is not None:
             # No lead errors: the geometry of the step in one compiled call.
             self.azimuth, phi, theta, centres, pair_idx, rear, front = kernel.advance(
@@ -282,12 +302,9 @@ class WholeScrew:
         if self.config.load_distribution == "elastic":
             elastic = elastic_load_path(phi, self.config.geometry.lead_m,
                                         self.config.elastic, axial_load_n, scale)
-        load_sign = 1.0 if axial_load_n >= 0.0 else -1.0
         sol = None
         prev = None
-        iterations = 0
-        budget = self.config.solver.realtime_max_iterations or None
-        if self._state is not None and self._state[2] == sign and self._state[3] == load_sign:
+        if warm_ok:
             warm = self._warm_solve if self.model.solver.use_kernel else self._warm_solve_numpy
             sol, iterations = warm(d_psi, centres, sign, axial_load_n, scale, pair_idx, rear,
                                    front, budget, elastic)
@@ -306,6 +323,47 @@ class WholeScrew:
         self._prev = prev
         return self._finish(sol, sign, omega_n, axial_load_n, theta, phi, pair_idx, rear, front,
                             t0)
+
+    def _fused_step(self, d_psi, sign, load_sign, omega_n, axial_load_n, budget, t0):
+        """
+        Take a warm step of a rigid nut without lead errors in one compiled call.
+
+        ``kernel.warm_step``: ``advance``, ``_warm_solve`` and ``_finish``'s sums with the same
+        arithmetic.  Returns (StepResult, iterations), or (None, iterations) when the solve
+        failed from every guess (state untouched: the caller cold-starts).
+        """
+        solver = self.model.solver
+        st = solver.settings
+        x, u = self._state[0], self._state[1]
+        if self._prev is not None:
+            xp, up, fp, dp = self._prev
+        else:
+            xp, up, fp, dp = x, u, self._forces, 0.0
+        if x.shape != (self.n, 6) or xp.shape != x.shape or fp.shape != (self.n,):
+            # The kernel does not check bounds (see solver._solve_active_kernel).
+            raise ValueError(f"warm solve: state {x.shape}, previous {xp.shape}, forces "
+                             f"{fp.shape} for {self.n} balls")
+        scale = self.model.force_scale(self.n, axial_load_n)
+        out = kernel.warm_step(
+            self.azimuth, self.ratio, d_psi, self.nut_angle + self.config.track.track_start_rad,
+            sign, self._geo, x, float(u), xp, float(up), fp, float(dp), self._forces,
+            self._active, *solver.kernel_constants(), scale, axial_load_n,
+            *solver.b2b.linear_terms(sign), st.tolerance, st.max_iterations, st.max_step_rate,
+            solver.displacement_limit(scale), st.max_active_set_changes,
+            budget if budget else -1, omega_n)
+        ok, exhausted, iterations = out[0], out[1], int(out[2])
+        if not (ok or exhausted):
+            return None, iterations
+        (_, _, _, _, self.azimuth, phi, theta, x, u, forces, self._active, self.ratio, omega_b,
+         loads, axial, g_rear, g_front, g_force, loss_sum, torque_sum, b2b_sum, load_max) = out
+        # Real-time mode: an unfinished iterate is kept too, converged = False.
+        self._prev = (self._state[0], self._state[1], self._forces, d_psi)
+        self._state = (x, u, sign, load_sign)
+        self._forces = forces
+        return self._result(omega_n, axial_load_n, loss_sum, torque_sum, b2b_sum, load_max,
+                            bool(ok), iterations, phi, theta, omega_b, loads, axial,
+                            _groups(g_rear.tolist(), g_front.tolist(), g_force.tolist()),
+                            t0), iterations
 
     def _warm_solve_numpy(self, d_psi, centres, sign, axial_load_n, scale, pair_idx, rear, front,
                           budget, elastic):
@@ -391,46 +449,58 @@ class WholeScrew:
 
     def _finish(self, sol, sign, omega_n, axial_load_n, theta, phi, pair_idx, rear, front, t0):
         """Store the state and build the StepResult."""
-        b = self.model.ball
         self._state = (sol.x, sol.u, sign, 1.0 if axial_load_n >= 0.0 else -1.0)
-        self.ratio = sol.x[:, 2] * sign
-        self._active = np.zeros(self.n, dtype=bool)
-        self._active[pair_idx] = sol.active
-        self._forces = np.zeros(self.n)
-        self._forces[pair_idx] = sol.forces
+        t = sol.terms
+        loss_sum, torque_sum, b2b_sum, load_max, self.ratio, self._active, self._forces, act \
+            = kernel.step_totals(t["loss"], t["nut_torque"], t["load"], sol.forces,
+                                 sol.b2b_speed, sol.active, pair_idx, sol.x, float(sign))
+        return self._result(omega_n, axial_load_n, loss_sum, torque_sum, b2b_sum, load_max,
+                            bool(sol.converged), sol.iterations, phi, theta,
+                            self.ratio * omega_n, t["load"].copy(), -t["axial"],
+                            _groups(rear[act].tolist(), front[act].tolist(),
+                                    sol.forces[act].tolist()), t0)
+
+    def _result(self, omega_n, axial_load_n, loss_sum, torque_sum, b2b_sum, load_max,
+                converged, iterations, phi, theta, omega_b, loads, ball_axial, groups, t0):
+        """Build the StepResult from a solved step's sums and per-ball arrays (owned)."""
+        b = self.model.ball
         abs_w = abs(omega_n)
-        groove_loss = float(sol.terms["loss"].sum()) * abs_w
-        b2b_loss = float(b.mu * np.dot(sol.forces, sol.b2b_speed)) * abs_w \
-            if pair_idx.size else 0.0
-        torque = float(sol.terms["nut_torque"].sum()) - axial_load_n * b.r_gear
+        groove_loss = loss_sum * abs_w
+        b2b_loss = b.mu * b2b_sum * abs_w
+        torque = torque_sum - axial_load_n * b.r_gear
         loss = groove_loss + b2b_loss
         drive = omega_n * torque
-        groups = []
-        chain_ids, chain_f = [], []
-        act = np.flatnonzero(sol.active) if pair_idx.size else pair_idx
-        for r, f, force in zip(rear[act].tolist(), front[act].tolist(),
-                               sol.forces[act].tolist()):
-            if chain_ids and chain_ids[-1] == r:
-                chain_ids.append(f)
-                chain_f.append(force)
-            else:
-                if chain_ids:
-                    groups.append((tuple(chain_ids), tuple(chain_f)))
-                chain_ids, chain_f = [r, f], [force]
-        if chain_ids:
-            groups.append((tuple(chain_ids), tuple(chain_f)))
         return StepResult(
             t_s=self.time, nut_angle_rad=self.nut_angle, nut_velocity_rad_s=omega_n,
             axial_load_n=axial_load_n, torque_total_nm=torque,
             torque_b2g_nm=groove_loss / omega_n, torque_b2b_nm=b2b_loss / omega_n,
-            drive_power_w=drive, loss_w=loss, converged=bool(sol.converged),
+            drive_power_w=drive, loss_w=loss, converged=converged,
             power_balance_error=abs(drive - loss) / max(loss, _TINY),
-            azimuth_rad=phi, theta_rad=theta, omega_b_rad_s=self.ratio * omega_n,
-            loads_n=sol.terms["load"].copy(), b2b_forces_n=self._forces.copy(),
-            groups=groups, ball_axial_loads_n=-sol.terms["axial"].copy(),
+            azimuth_rad=phi, theta_rad=theta, omega_b_rad_s=omega_b,
+            loads_n=loads, b2b_forces_n=self._forces.copy(),
+            groups=groups, ball_axial_loads_n=ball_axial,
             # Per contact only for a solution: an unconverged iterate's loads mean nothing,
             # and its load |W| already passed the range check in ``step``.
-            in_load_range=bool(not sol.converged
-                               or sol.terms["load"].max() <= self.max_contact_load_n),
-            iterations=sol.iterations,
+            in_load_range=bool(not converged or load_max <= self.max_contact_load_n),
+            iterations=iterations,
             solve_time_s=time.perf_counter() - t0)
+
+
+def _groups(rear, front, forces):
+    """B2B contact groups [(ball ids rear-first, forces)] of the active pairs in chain order."""
+    groups = []
+    chain_ids, chain_f = [], []
+    for r, f, force in zip(rear, front, forces):
+        if chain_ids and chain_ids[-1] == r:
+            chain_ids.append(f)
+            chain_f.append(force)
+        else:
+            if chain_ids:
+                groups.append((tuple(chain_ids), tuple(chain_f)))
+            chain_ids, chain_f = [r, f], [force]
+    if chain_ids:
+        groups.append((tuple(chain_ids), tuple(chain_f)))
+    return groups
+
+
+_COMPILED_WARM_SOLVE = WholeScrew._warm_solve

@@ -75,3 +75,29 @@ def test_compiled_warm_step_is_used_and_does_the_work(model, config, monkeypatch
     monkeypatch.setattr(type(model.solver), "solve", None)     # would raise if called
     for k in range(2, 6):
         assert screw.step(k * STEP_RAD, 2.0 * math.pi, 1500.0, 0.01).converged
+
+
+def test_fused_warm_step_falls_back_to_the_cold_start(model, config, monkeypatch):
+    """
+    A rigid warm step runs as one call (kernel.warm_step); when it fails from every guess
+    the step cold-starts from the same geometry, counts both solves' iterations, and lands
+    on the same equilibrium (both converge to the solver's tolerance).
+    """
+    motion = [(k * STEP_RAD, 2.0 * math.pi, 1500.0) for k in range(1, 12)]
+    plain = _run(WholeScrew(config, model), motion)
+    calls = []
+    real = kernel.warm_step
+
+    def failing(*args):
+        out = real(*args)
+        calls.append(out[2])
+        return (False, False) + out[2:]
+    monkeypatch.setattr(kernel, "warm_step", failing)
+    failed = _run(WholeScrew(config, model), motion)
+    assert len(calls) == len(motion) - 1          # every step after the first cold start
+    for r, q, it in zip(failed[1:], plain[1:], calls):
+        assert r.converged and q.converged
+        assert r.iterations >= it                  # the warm attempt's plus the cold start's
+        assert r.torque_total_nm == pytest.approx(q.torque_total_nm, rel=1e-6)
+        assert [g[0] for g in r.groups] == [g[0] for g in q.groups]
+        np.testing.assert_allclose(r.azimuth_rad, q.azimuth_rad, rtol=0, atol=1e-9)
