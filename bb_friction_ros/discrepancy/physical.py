@@ -27,12 +27,15 @@ Cost (each trial is a model run): the runs only visit the samples at which the r
 the model (``ModelRunner`` steps on a schedule of input stamps and direction changes that
 does not depend on the parameters; every other sample holds the last step's torque), so a
 trial costs the model's steps, not the recording's samples.  The schedule comes from one full
-run of the base config through the runner (also the reference T(p0)).  A coarse bracket per
-candidate (``PhysicalSettings``) runs first, in parallel on a Dask LocalCluster when
-``workers`` > 1; a candidate whose bracket change, at its best scale, could beat "none" is
-refined (``_next_value``: the fitted scale of a run's change says how large the change should
-be, and the value giving that size is interpolated between the runs: robust at the B2B
-contact's onset, where a parabola through the RSS is not), a model run per step, at most
+run of the base config through the runner (also the reference T(p0)).  The smooth
+candidates (mu, preload) search at a ``coarse_step_factor`` times coarser step, their change
+interpolated between the coarse steps; the winner is run again at the replay step.  A coarse
+bracket per candidate (``PhysicalSettings``) runs first, its runs in ``threads`` threads (the
+kernels release the GIL) or on a Dask LocalCluster when ``workers`` > 1; a candidate
+whose bracket change, at its best scale, could beat "none" is refined (``_next_value``: the
+fitted scale of a run's change says how large the change should be, and the value giving
+that size is interpolated between the runs: robust at the B2B contact's onset, where a
+parabola through the RSS is not), a model run per step, at most
 ``refine_runs``; the 95 % interval is read from the profile's parabola, where n' ln(RSS/n)
 rises by 3.84 (chi-square, one parameter).
 
@@ -41,7 +44,10 @@ torque, which is nearly the ``load_dependent`` column (k |W| sign w) when the to
 nearly proportional to the load; an angle ripple can mimic part of a B2B signature.  After
 the choice the twin is swapped in and refitted; a BIC difference below ``bic_threshold``
 names the pair as one ambiguous effect (the model's own parameter is kept: it is the
-physical reading, and the one the node can run).
+physical reading, and the one the node can run).  The twin may also be there beside the
+change: the chosen value's reading with the twin held is followed too (``with_twin`` in
+``select_with_physics``), and two readings within ``bic_threshold`` make the value itself
+ambiguous (both reported, the interval covering both).
 """
 
 import dataclasses
