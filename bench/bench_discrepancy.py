@@ -681,7 +681,8 @@ def physical_section(args):
               f"{row['snr']:.2f} (evidence sum d^2/s^2 {evidence:.0f}, beside the hidden "
               f"terms' columns {evidence_beside:.0f}; price {price:.1f}); {row['runs']} "
               f"runs, {wall:.1f} s ({a.physical.wall_s:.1f} s in model runs); "
-              f"held-out reducible {reducible * 1e3:.2f} mN m, 80 % removed: {ok_rmse}",
+              f"held-out reducible {reducible * 1e3:.2f} mN m, 80 % removed: {ok_rmse}"
+              f"{'; ambiguous: ' + str(row['ambiguous']) if row['ambiguous'] else ''}",
               flush=True)
     phys = [r for r in rows if r["hidden"]]
     emp = [r for r in rows if not r["hidden"]]

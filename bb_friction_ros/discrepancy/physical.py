@@ -836,33 +836,16 @@ def select_with_physics(physics, rec_all, ok, fit_mask, r, x_fit, settings, skip
                     profiles[name] = _Profile(_held(PHYSICAL[name], o), x_fit, r_fit, tau,
                                               settings)
         finals = []
-        best_pts = {name: best_of(name) for name in active}
-        # a value found at the coarse step is run again at the replay path's step: the
-        # change the selection decides on, the report plots and augmented.yaml runs
-        again = [(PHYSICAL[name], pt.value) for name, pt in best_pts.items() if pt.run.coarse]
-        for (kind, v), run in zip(again, runner.run(again, fine=True)):
-            fine_pt = consider(kind, run)
-            if fine_pt is not None:
-                rows[(kind.name, v)] = search.trials[-1]
-                search.trials[-1]["rerun"] = True
-                points[kind.name] = [q for q in points[kind.name]
-                                     if q is not fine_pt and q.value != v] + [fine_pt]
-                best_pts[kind.name] = fine_pt
-                selected.pop((kind.name, v), None)
         for name in active:
-            pt = best_pts[name]
-            if pt.run.coarse:       # its run at the replay step did not converge
-                continue
+            pt = best_of(name)
             o = selected.get((name, pt.value)) or outcome(PHYSICAL[name], pt)
             row = rows[(name, pt.value)]
             row.update(penalised_bic=o.score, terms=list(o.terms.names), selection=True)
             finals.append(o)
-        if not finals:
-            search.identifiability = _unchosen_twins(bounds, points, none, settings)
-            return none.terms, none.trace, none.ctx, search
-        best = min(finals, key=lambda o: o.score)
 
         def fine_point(kind, pt):
+            # a value found at the coarse step is run again at the replay path's step: the
+            # change the selection decides on, the report plots and augmented.yaml runs
             if not pt.run.coarse:
                 return pt
             fine_pt = consider(kind, runner.run([(kind, pt.value)], fine=True)[0])
@@ -871,6 +854,29 @@ def select_with_physics(physics, rec_all, ok, fit_mask, r, x_fit, settings, skip
                 points[kind.name] = [q for q in points[kind.name] if q.value != pt.value or
                                      q is fine_pt]
             return fine_pt
+
+        def confirmed(o):
+            # only the winner is run again (the coarse change is within 0.5 % of the fine
+            # one: the ranking of the candidates does not hang on it); None: its run at the
+            # replay step did not converge
+            if not o.run.coarse:
+                return o
+            pt = fine_point(o.kind, _Point(o.value, o.run, o.delta_fit))
+            if pt is None:
+                return None
+            f = outcome(o.kind, pt)
+            search.trials[-1].update(penalised_bic=f.score, terms=list(f.terms.names),
+                                     selection=True)
+            return f
+
+        best = None
+        for o in sorted(finals, key=lambda o: o.score):
+            best = confirmed(o)
+            if best is not None:
+                break
+        if best is None:
+            search.identifiability = _unchosen_twins(bounds, points, none, settings)
+            return none.terms, none.trace, none.ctx, search
 
         def with_twin(o):
             """
