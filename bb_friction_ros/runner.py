@@ -356,13 +356,18 @@ class ModelRunner:
 
     def warm_up(self, axial_load_n, nut_velocity_rad_s):
         """
-        Run one reset and step, then forget them (``stats`` untouched).
+        Run one reset, a cold step and a warm step, then forget them (``stats`` untouched).
 
         Pays compilation and first-solve costs before inputs arrive, so a live node's
-        first input is not late; node and replay both do it (identical state after).
+        first input is not late; node and replay both do it (identical state after).  The
+        warm step has compiled calls of its own (``kernel.warm_step``), which numba loads at
+        their first call: 67 ms from its cache (measured), a compile takes seconds.  Without
+        it the node said "ready" and then fell ~70 inputs behind at its first warm step.
         """
         self.screw.reset(0.0)
         self.screw.step(0.0, nut_velocity_rad_s, axial_load_n, 0.0)
+        self.screw.step(math.copysign(self.step_rad, nut_velocity_rad_s), nut_velocity_rad_s,
+                        axial_load_n, self.step_rad / max(abs(nut_velocity_rad_s), 1e-9))
         self.reset()
 
     def reject(self, reason, nut_state=False):

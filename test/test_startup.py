@@ -47,3 +47,51 @@ def test_the_check_sees_an_import():
                          timeout=600)
     assert out.returncode == 0, out.stderr
     assert "scipy.special" in out.stdout.split()
+
+
+LOADED = """
+import math, sys
+from bb_friction_ros.config import bundled_config
+from bb_friction_ros.runner import InputSample, build_runner
+
+def loaded():
+    # every numba dispatcher of the package, with the signatures it has compiled or loaded
+    out = set()
+    for name, mod in list(sys.modules.items()):
+        if not name.startswith("bb_friction_ros"):
+            continue
+        for attr, obj in vars(mod).items():
+            if hasattr(obj, "py_func") and hasattr(obj, "signatures"):
+                out.update((name, attr, str(sig)) for sig in obj.signatures)
+    return out
+
+runner = build_runner(bundled_config("ball_screw.yaml"), 100.0)
+ready = loaded()
+w = 2.0 * math.pi
+angle, stamp = 0.0, 0.0
+for k in range(60):                       # forward, then a reversal: warm steps both ways
+    v = w if k < 30 else -w
+    angle += v * 0.001
+    stamp += 0.001
+    runner.process(InputSample(stamp, angle, v, 1500.0))
+assert runner.stats.model_steps > 10, runner.stats.model_steps
+print(len(ready))
+print("\\n".join(sorted(" ".join(x) for x in loaded() - ready)))
+"""
+
+
+def test_nothing_compiles_or_loads_after_ready():
+    """
+    The model built as the node builds it has loaded every compiled call a step makes.
+
+    numba loads a kernel at its first call (67 ms from its cache for ``kernel.warm_step``,
+    seconds to compile): one loaded after "ready" stalled the node's first warm step and
+    made it fall ~70 inputs behind at 1 kHz.  Checked in a fresh process by the kernels'
+    signatures before and after steps both ways; the first line shows the check sees some.
+    """
+    out = subprocess.run([sys.executable, "-c", LOADED], capture_output=True, text=True,
+                         timeout=600)
+    assert out.returncode == 0, out.stderr
+    first, *new = out.stdout.strip().split("\n")
+    assert int(first) > 0, "no compiled call seen at ready: the check sees nothing"
+    assert [n for n in new if n] == [], f"loaded after ready: {new}"
