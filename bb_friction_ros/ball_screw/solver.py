@@ -111,18 +111,16 @@ class EquilibriumSolver:
         Load (or compile) the kernel now, not in the first step: one evaluation of two balls.
 
         numba loads the cached machine code at the first call (about 0.2 s; a first compile
-        takes seconds), which would otherwise stall a live node's first input.
+        takes seconds), which would otherwise stall a live node's first input.  The warm
+        step's calls are loaded by ``runner.warm_up``'s warm step, which takes the path the
+        config uses (``kernel.warm_step`` for a rigid nut, else ``kernel.warm_solve``):
+        loading ``warm_solve`` here as well cost 55 ms of every start (measured) for a call
+        the default config never makes.
         """
         x = self.ball.rolling_guess(2, 1.0)
         centres = self.ball.arc_centres(np.zeros(2), 0.0, 0.0)
         pair = np.array([0]), np.array([1])
         self._solve_active_kernel(x, 0.0, np.zeros(1), centres, 1.0, 1.0, 1.0, *pair, 0)
-        st = self.settings
-        none = np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0)
-        kernel.warm_solve(x, np.zeros(1), x, np.zeros(1), np.zeros(2), 0.0, np.zeros(2),
-                          np.zeros(2, dtype=bool), 0.0, np.zeros(1, dtype=np.int64), centres, 1.0,
-                          *self.kernel_constants(), 1.0, 1.0, *pair, *self.b2b.linear_terms(1.0),
-                          *none, float(st.tolerance), 0, float(st.max_step_rate), 1.0, 1, -1)
         kernel.ring_projection(np.array([0.0, 0.5]), 1.0, 10.0)
         kernel.ring_pairs(np.array([0.0, 0.5]), 1.0, 10.0, 0.0, 1.0)
         kernel.theta_centres(np.zeros(2), 0.0, 1.0, 0.0, 0.0, 1.0, 0.5)
