@@ -162,6 +162,15 @@ def short_case(cache, hidden, terms=TermSet(), noise_nm=0.004, seed=1):
                             cache, MODEL_RATE_HZ)
 
 
+def analysed(cache, hidden, effects, seed):
+    """The workflow with physical candidates on ``short_case``, ``effects`` drawn by ``seed``."""
+    rng = np.random.default_rng(seed)
+    terms = TermSet([draw_effect(name, rng) for name in effects])
+    rec, cfg, _ = short_case(cache, hidden, terms, seed=seed)
+    return analyse(rec, DiscrepancySettings(),
+                   ph.PhysicsContext(cfg, RUNNER, ph.PhysicalSettings(enabled=True)))
+
+
 def write_csv(path, rec):
     cols = np.column_stack([rec.t_s, rec.nut_angle_rad, rec.nut_velocity_rad_s,
                             rec.axial_load_n, rec.torque_meas_nm, rec.torque_pred_nm])
@@ -212,12 +221,7 @@ def test_hidden_theta_end_to_end_contract(cache, tmp_path):
 
 def test_hidden_mu_with_an_empirical_effect_on_top(cache):
     """mu 0.13 where the config says 0.1, plus a seal drag: both named, mu within 5 %."""
-    rng = np.random.default_rng(11)
-    seal = TermSet([draw_effect("seal_drag", rng)])
-    rec, cfg, _ = short_case(cache, {"material": {"friction_coefficient": 0.13}}, seal,
-                             seed=11)
-    a = analyse(rec, DiscrepancySettings(),
-                ph.PhysicsContext(cfg, RUNNER, ph.PhysicalSettings(enabled=True)))
+    a = analysed(cache, {"material": {"friction_coefficient": 0.13}}, ["seal_drag"], 11)
     choice = ph.chosen(a.physical)
     assert choice is not None and choice.kind.name == "friction_coefficient"
     assert abs(choice.value / 0.13 - 1.0) <= MU_RELATIVE_TOLERANCE
@@ -239,12 +243,7 @@ def test_mu_with_load_dependent_on_top_is_reported_as_two_readings(cache):
     load_dependent, within the threshold of the first, so the value is reported ambiguous
     and its interval covers both readings and the truth.
     """
-    rng = np.random.default_rng(1)
-    load = TermSet([draw_effect("load_dependent", rng)])
-    rec, cfg, _ = short_case(cache, {"material": {"friction_coefficient": 0.075}}, load,
-                             seed=1)
-    a = analyse(rec, DiscrepancySettings(),
-                ph.PhysicsContext(cfg, RUNNER, ph.PhysicalSettings(enabled=True)))
+    a = analysed(cache, {"material": {"friction_coefficient": 0.075}}, ["load_dependent"], 1)
     choice = ph.chosen(a.physical)
     assert choice is not None and choice.kind.name == "friction_coefficient"
     readings = [x for x in a.ambiguities if "values" in x]
@@ -263,11 +262,7 @@ def test_mu_with_load_dependent_on_top_is_reported_as_two_readings(cache):
 
 def test_empirical_effects_only_name_no_physics(cache):
     """The config right, a seal and a viscous drag added: no physical parameter is named."""
-    rng = np.random.default_rng(4)
-    terms = TermSet([draw_effect("seal_drag", rng), draw_effect("viscous_drag", rng)])
-    rec, cfg, _ = short_case(cache, {}, terms, seed=4)
-    a = analyse(rec, DiscrepancySettings(),
-                ph.PhysicsContext(cfg, RUNNER, ph.PhysicalSettings(enabled=True)))
+    a = analysed(cache, {}, ["seal_drag", "viscous_drag"], 4)
     assert ph.chosen(a.physical) is None
     assert set(a.terms.names) == {"seal_drag", "viscous_drag"}
 
