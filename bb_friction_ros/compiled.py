@@ -17,9 +17,46 @@ except the ball screw's elastic system, run as plain Python).
 """
 
 import math
+import os
+import sys
+
+
+def _import_numba():
+    """
+    Import numba without two imports of its own that these kernels never use (start-up).
+
+    - ``coverage`` (58 ms, measured with -X importtime): numba's coverage support imports it
+      whenever it is installed (pytest-cov puts it in the venv, many ROS installs have it),
+      but uses it only with ``NUMBA_JIT_COVERAGE`` set.
+    - ``scipy.linalg`` (0.14-0.2 s): importing numba's numpy registry
+      (``numba.np.arraymath``, at the first compiled call otherwise) checks for a BLAS by
+      importing ``scipy.linalg.cython_blas``, whose package imports most of scipy.  The
+      check only picks the inner product of np.correlate and np.convolve, which no kernel
+      here calls; np.dot and np.linalg in a kernel would still find BLAS (they import it
+      when compiled).
+
+    Each is hidden (``sys.modules[name] = None``: the import raises ImportError) only while
+    numba's modules import, and only if nothing imported it yet; the entries are removed
+    afterwards, so a later ``import coverage`` or ``import scipy.linalg`` works as always.
+    Half of the node's ~0.45 s of numba loading was these two (docs/node_latency.md).
+    """
+    hidden = [name for name in ("coverage", "scipy.linalg.cython_blas")
+              if name not in sys.modules
+              and not (name == "coverage" and os.environ.get("NUMBA_JIT_COVERAGE"))]
+    for name in hidden:
+        sys.modules[name] = None
+    try:
+        import numba
+        import numba.np.arraymath   # noqa: F401  (the registry module with the BLAS check)
+    finally:
+        for name in hidden:
+            if name in sys.modules and sys.modules[name] is None:
+                del sys.modules[name]
+    return numba
+
 
 try:
-    import numba
+    numba = _import_numba()
     HAVE_NUMBA = True
 
     def jit(fn=None, exact=False):
