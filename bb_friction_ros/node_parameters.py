@@ -50,6 +50,14 @@ class NodeParameters:
     max_answer_age_s: float = field(0.02, "s", "largest age of an answer, from the input's "
                                     "arrival to publication; older answers are shed and "
                                     "counted", lo=1e-4, hi=10.0)
+    max_backlog_s: float = field(0.005, "s", "age of the oldest input waiting for the "
+                                 "model thread beyond which it skips that input's step "
+                                 "(the schedule turns coarser, counted); younger, it works "
+                                 "through the queue at the configured step, so a step "
+                                 "pipelined behind one input is no backlog (0: skip "
+                                 "whenever the newest waiting input would be due again; "
+                                 "never more than max_answer_age_s)",
+                                 lo=0.0, hi=10.0)
     profile_horizon_periods: float = field(2.0, "1", "look-ahead profile length in model "
                                            "periods of motion", lo=2.0, hi=20.0)
     profile_points: int = field(3, "1", "points of the look-ahead profile (the first is the "
@@ -78,9 +86,10 @@ class NodeParameters:
 
 # Changeable while the node runs; a change of a MODEL_PARAMETERS one rebuilds the model.
 RUNTIME = frozenset({"nut_joint", "model_rate_hz", "groups_rate_hz", "max_axial_load_n",
-                     "config_file", "max_answer_age_s", "profile_horizon_periods",
-                     "profile_points", "model_step_deg", "max_model_step_deg",
-                     "input_timeout_s", "model_rate_tolerance", "gil_switch_interval_s"})
+                     "config_file", "max_answer_age_s", "max_backlog_s",
+                     "profile_horizon_periods", "profile_points", "model_step_deg",
+                     "max_model_step_deg", "input_timeout_s", "model_rate_tolerance",
+                     "gil_switch_interval_s"})
 MODEL_PARAMETERS = frozenset({"config_file", "model_rate_hz", "model_step_deg",
                               "max_model_step_deg"})
 FIELDS = {f.name: f for f in dataclasses.fields(NodeParameters)}

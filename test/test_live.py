@@ -91,18 +91,22 @@ def wait_until(cond, timeout_s=20.0):
         time.sleep(0.001)
 
 
-@pytest.mark.parametrize("more_waiting", [False, True, 1, 6])
-def test_live_schedule_equals_replay(more_waiting):
+@pytest.mark.parametrize("more_waiting, young", [(False, False), (True, False), (1, False),
+                                                 (6, False), (True, True), (6, True)])
+def test_live_schedule_equals_replay(more_waiting, young):
     """
     Paced inputs (the model keeps up): the answers are replay's, value for value.  With no
-    other input waiting a due step is taken in the caller's thread (no hand-off); with
-    inputs waiting (a batch, not known which) it goes to the model thread; with the newest
-    waiting input known (1 or 6 inputs later: 5 inputs per model period), only the steps
-    after which that one would be due again go to the model thread (the model is behind):
-    the same answers every way.
+    other input waiting a due step is taken in the caller's thread (no hand-off).  With
+    ``max_backlog_s`` 0 (every waiting input counts as a backlog): with inputs waiting (a
+    batch, not known which) it goes to the model thread; with the newest waiting input
+    known (1 or 6 inputs later: 5 inputs per model period), only the steps after which that
+    one would be due again go to the model thread (the model is behind).  With the default
+    ``max_backlog_s`` (``young``: the waiting inputs are younger than it) everything is
+    stepped in the caller's thread.  The same answers every way.
     """
     events = short_recording(state_rate_hz=500.0)     # 5 inputs per model period
-    live, rec = schedule()
+    live, rec = schedule(NodeParameters(max_answer_age_s=10.0,
+                                        max_backlog_s=0.005 if young else 0.0))
     try:
         feed(live, events, more_waiting=more_waiting)
     finally:
@@ -120,7 +124,11 @@ def test_live_schedule_equals_replay(more_waiting):
     assert values["profiles"] == len(rec.profiles) > 0
     stepped = [a for a in rec.answers if a[0].stepped]
     assert 0 < len(stepped) < len(rec.answers)
-    if type(more_waiting) is int:   # handed off: the steps the newest would follow
+    if young or not more_waiting:   # everything in the caller's thread
+        assert {a[3] for a in rec.answers} == {0}
+        assert rec.threads == {threading.get_ident()}
+        assert values["answered_inline"] == len(rec.answers)
+    elif type(more_waiting) is int:   # handed off: the steps the newest would follow
         runner = build_runner(bundled_config("ball_screw.yaml"), p.model_rate_hz)
         asm = InputAssembler(p.nut_joint, p.max_axial_load_n)
         behind = set()
@@ -149,13 +157,9 @@ def test_live_schedule_equals_replay(more_waiting):
         assert len(behind) == 0 if more_waiting == 1 else len(stepped) - 6 < len(behind)
         assert {a[1] for a in rec.answers if a[3] == 1} == behind
         assert values["answered_inline"] == len(rec.answers) - len(behind)
-    elif more_waiting:  # steps in the model thread, the rest in the caller's
+    else:               # steps in the model thread, the rest in the caller's
         assert {a[3] for a in stepped} == {1} and len(rec.threads) == 2
         assert values["answered_inline"] == len(rec.answers) - len(stepped)
-    else:               # everything in the caller's thread
-        assert {a[3] for a in rec.answers} == {0}
-        assert rec.threads == {threading.get_ident()}
-        assert values["answered_inline"] == len(rec.answers)
 
 
 def test_one_profile_per_model_period_of_motion():
@@ -217,6 +221,46 @@ def test_no_profile_while_the_schedule_is_coarser():
     assert values["profiles"] > 0
 
 
+@pytest.mark.parametrize("waited_s", [0.0, 0.02])
+def test_a_backlog_is_inputs_older_than_max_backlog_s(waited_s):
+    """
+    20 rev/s at 1 kHz: every input is due four 1.8 deg steps, and the newest waiting one is
+    always due again after it.  Inputs younger than ``max_backlog_s`` (an input taken while
+    the one before it steps: the normal pipeline at 20 rev/s) are stepped as replay steps
+    them; older ones (``waited_s`` 20 ms, a real backlog) are caught up by skipping steps,
+    and the schedule turns coarser.  Before max_backlog_s the first case skipped too, and
+    the live node at 20 rev/s coarsened to 14.4 deg.
+    """
+    import math
+    p = NodeParameters(max_answer_age_s=10.0)     # max_backlog_s: the default, 5 ms
+    live, rec = schedule(p)
+    j = ("nut_joint",)
+    w = 40 * math.pi
+    states = [(1e-3 * k, j, (w * 1e-3 * k,), (w,)) for k in range(40)]
+    try:
+        live.on_axial_load(1500.0)
+        for k, state in enumerate(states):
+            newest = states[k + 1] if k + 1 < len(states) else False
+            live.on_nut_state(*state, time.time_ns() - int(waited_s * 1e9), state[0], newest)
+            while waited_s < p.max_backlog_s and not live.idle():
+                time.sleep(0.0002)      # young: each taken after the one before it
+        wait_until(lambda: live.values(advance=False)[0]["published"] == len(states))
+    finally:
+        live.stop()
+    values = live.values()[0]
+    assert values["published"] == len(states)
+    if waited_s < p.max_backlog_s:
+        ref = run_events([Event("axial_load", 0.0, value=1500.0)]
+                         + [Event("nut_state", *s) for s in states],
+                         build_runner(bundled_config("ball_screw.yaml"), p.model_rate_hz),
+                         InputAssembler(p.nut_joint, p.max_axial_load_n))
+        assert [a[0] for a in rec.answers] == ref
+        assert values["skipped_steps"] == values["coarse_steps"] == 0
+        assert values["answered_inline"] == len(states)
+    else:
+        assert values["skipped_steps"] > 0 and values["coarse_steps"] > 0
+
+
 def test_answers_older_than_the_limit_are_shed_and_counted():
     """A clock that says every answer is 1 s old: none published, every one counted."""
     events = short_recording()
@@ -240,9 +284,11 @@ def test_a_slow_model_falls_behind_coarsens_and_says_so():
     try:
         live.on_axial_load(1500.0)
         n = 300
-        # 1 kHz stamps, 6 rad/s, received at once: each with more waiting behind it
+        # 1 kHz stamps, 6 rad/s, received at once (one receipt time): each with more
+        # waiting behind it, older than max_backlog_s once the first 20 ms step is done
+        received_ns = time.time_ns()
         for k in range(n):
-            live.on_nut_state(1e-3 * k, j, (6e-3 * k,), (6.0,), time.time_ns(), k, k < n - 1)
+            live.on_nut_state(1e-3 * k, j, (6e-3 * k,), (6.0,), received_ns, k, k < n - 1)
         wait_until(lambda: live.values(advance=False)[0]["published"] == n)
     finally:
         live.stop()
