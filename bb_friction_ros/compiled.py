@@ -47,7 +47,10 @@ def _import_numba():
         sys.modules[name] = None
     try:
         import numba
-        import numba.np.arraymath   # noqa: F401  (the registry module with the BLAS check)
+        try:
+            import numba.np.arraymath   # noqa: F401  (the registry module with the BLAS check)
+        except ImportError:     # another numba layout: its registries load as they come
+            pass
     finally:
         for name in hidden:
             if name in sys.modules and sys.modules[name] is None:
