@@ -349,12 +349,12 @@ class LiveSchedule:
             # already waiting (the schedule's own terms: angle, direction, time floor), and
             # this input has waited longer than max_backlog_s.  The step is then left to the
             # newest sample (the model tracks the present, not its backlog).  Without the
-            # age, one input waiting behind a step was "behind": at 20 rev/s every 1 kHz
-            # input is due four 1.8 deg steps, so the normal pipeline (the input thread
-            # taking the next input while this one steps) skipped steps and coarsened the
-            # schedule to 14.4 deg, an error of 0.46 of the B2B variation against 0.19.
-            # (The test before the angle test, a queue spanning a model period, let the
-            # queue grow to 10 ms at 20 rev/s and shed 25 % of the answers: issue 20.)
+            # age any input waiting behind a due step counted: at 20 rev/s, where every
+            # 1 kHz input is due four 1.8 deg steps, one input arriving while the one before
+            # it stepped skipped a step and doubled the schedule (for 2 s per halving), and
+            # the cold first step at start did the same at 1 rev/s.  (The test before the
+            # angle test, a queue spanning a model period, let the queue grow to 10 ms at
+            # 20 rev/s and shed 25 % of the answers: issue 20.)
             behind = newest is not None and self._backlog(recv_ns) \
                 and runner.due_between(sample, newest)
             resets = runner.stats.resets
