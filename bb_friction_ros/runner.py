@@ -22,7 +22,8 @@ input time is reported), so the output keeps the input rate while the model step
 Falling behind (the live node only: replay always steps): a sample that cannot step
 (``process(sample, allow_step=False)``) is answered from the current state, and the schedule
 turns coarser, the step and the floor doubled (up to ``max_model_step_deg``), rather than
-building a backlog; after ``RELAX_AFTER_S`` of input time with none skipped it halves again.
+building a backlog; after a calm of input time with none skipped it halves again (0.25 s at
+first, doubled up to 2 s while the finer step keeps failing: ``RELAX_MIN_S``, ``RELAX_MAX_S``).
 Steps taken coarser are counted (``stats.coarse_steps``); only then do live and replay differ.
 
 Feedforward policy (a step that did not converge): the prediction keeps the model's raw
@@ -63,11 +64,20 @@ STAMP_RESOLUTION_S = 1e-6
 # w * t may come out a few ulp short of it; 1e-9 rad is far below any encoder's resolution.
 ANGLE_RESOLUTION_RAD = 1e-9
 # A schedule made coarser because the live model fell behind returns to half that step after
-# this much input time with no step skipped (the load on the CPU may have been a transient).
-# Each try of a step the CPU cannot keep costs a backlog of one model period before the step
-# doubles back: counted in input time, not steps, so a node that cannot keep the fine step
-# pays it once per RELAX_AFTER_S (at 4000 steps/s a count of steps would retry 20x a second).
-RELAX_AFTER_S = 2.0
+# a calm (input time with no step skipped) of RELAX_MIN_S first: most falls are transients
+# (the first, cold step at start; the machine taking the CPU away for a few ms), and each
+# halving after a fixed 2 s kept 1.8 deg steps away for up to 6 s after one of them at
+# 20 rev/s (docs/model_schedule.md).  A fall within RELAX_MAX_S of a halving (the finer step
+# did not hold) doubles the calm, up to RELAX_MAX_S, so a node that cannot keep the fine step
+# soon retries it only once per RELAX_MAX_S, each try costing a backlog of max_backlog_s; a
+# fall later than that starts again from RELAX_MIN_S.  Counted in input time, not steps: at
+# 4000 steps/s a count of steps would retry 20x a second.
+RELAX_MIN_S = 0.25
+RELAX_MAX_S = 2.0
+# Weight of the newest step in the running mean of step wall times that prices a look-ahead
+# profile (``profile_fits``): the cold first step (about 3.7 ms, 20-40 warm steps) moves it
+# by a fraction, a trend moves it within some 10 steps.
+STEP_TIME_WEIGHT = 0.1
 # Sub-steps between two input samples at most: more is a jump of the angle (a gap in the
 # input or an encoder glitch), crossed in this many coarser steps rather than a burst of CPU.
 MAX_SUBSTEPS = 64
@@ -243,7 +253,10 @@ class ModelRunner:
         # two, at most max_model_step_deg / model_step_deg
         self.max_scale = max_model_step_deg / model_step_deg
         self.scale = 1.0
+        self._step_time_s = None    # running mean of the model steps' wall time [s]
         self._calm_since = None     # input stamp of the last skip, or of the last halving
+        self._relaxed_at = None     # input stamp of the last halving
+        self._relax_s = RELAX_MIN_S     # the calm the next halving waits for
         self._coarsened = False     # the scale went up since the last step
         self.stats = RunnerStats()
         self._last_stamp = None
@@ -366,8 +379,10 @@ class ModelRunner:
         """
         self.screw.reset(0.0)
         self.screw.step(0.0, nut_velocity_rad_s, axial_load_n, 0.0)
+        t0 = time.perf_counter()
         self.screw.step(math.copysign(self.step_rad, nut_velocity_rad_s), nut_velocity_rad_s,
                         axial_load_n, self.step_rad / max(abs(nut_velocity_rad_s), 1e-9))
+        self._step_time_s = time.perf_counter() - t0   # a warm step prices the first profile
         self.reset()
 
     def reject(self, reason, nut_state=False):
@@ -520,10 +535,10 @@ class ModelRunner:
         self._model_direction = _sign(sample.nut_velocity_rad_s)
         if self.scale > 1.0:
             self.stats.coarse_steps += 1
-            if sample.stamp_s - self._calm_since >= RELAX_AFTER_S:
+            if sample.stamp_s - self._calm_since >= self._relax_s:
                 # kept up for a while at this scale: try the finer step again
                 self.scale = max(1.0, self.scale / 2.0)
-                self._calm_since = sample.stamp_s
+                self._calm_since = self._relaxed_at = sample.stamp_s
         self._coarsened = False
 
     def _coarsen(self, stamp_s):
@@ -531,6 +546,11 @@ class ModelRunner:
         self._calm_since = stamp_s
         if self._coarsened or self.scale >= self.max_scale:
             return
+        since = None if self._relaxed_at is None else stamp_s - self._relaxed_at
+        if since is not None and 0.0 <= since < RELAX_MAX_S:
+            self._relax_s = min(2.0 * self._relax_s, RELAX_MAX_S)   # the finer step failed
+        else:
+            self._relax_s = RELAX_MIN_S                             # a new fall
         self.scale = min(2.0 * self.scale, self.max_scale)
         self._coarsened = True
         self.stats.coarsenings += 1
@@ -539,7 +559,9 @@ class ModelRunner:
         t0 = time.perf_counter()
         res = self.screw.step(sample.nut_angle_rad, sample.nut_velocity_rad_s,
                               sample.axial_load_n, dt_s)
-        self.stats.last_step_wall_s = time.perf_counter() - t0
+        self.stats.last_step_wall_s = took = time.perf_counter() - t0
+        mean = self._step_time_s
+        self._step_time_s = took if mean is None else mean + STEP_TIME_WEIGHT * (took - mean)
         self.stats.model_steps += 1
         if not res.converged:
             self.stats.nonconverged_steps += 1
@@ -561,6 +583,29 @@ class ModelRunner:
             return
         w = nut_velocity_rad_s
         self._held = (total_nm, _sign(w)) if w != 0.0 else None
+
+    def profile_fits(self, sample, horizon_periods, n_points):
+        """
+        Return True if a look-ahead profile from ``sample`` can end before the next step.
+
+        Its model steps (``look_ahead_profile``: ``n_points - 1`` points, each reached in
+        sub-steps of at most the coarsest step) at the steps' mean wall time, against the
+        input time to the next step due at this velocity (a model step of rotation, or the
+        time floor).  The live node gives way to every due step, so a profile that cannot end
+        before it is abandoned: at 20 rev/s with 1 kHz inputs (a step due at every input,
+        1 ms apart) a 144 deg profile is ten 14.4 deg steps, 1.5-4 ms, and every one started
+        was abandoned, at 0.3-0.4 of a core (docs/model_schedule.md).
+        """
+        w = abs(sample.nut_velocity_rad_s)
+        if w == 0.0 or n_points < 2:
+            return True
+        step = self.step_rad * self.scale
+        period = self.period_s * self.scale
+        horizon = horizon_periods * max(w * period, step)
+        n_sub = max(1, math.ceil(horizon / (n_points - 1) / (self.step_rad * self.max_scale)
+                                 - ANGLE_RESOLUTION_RAD))
+        cost_s = (n_points - 1) * n_sub * (self._step_time_s or 0.0)
+        return cost_s < min(step / w, period)
 
     def profile_seed(self, sample):
         """

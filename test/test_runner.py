@@ -275,10 +275,12 @@ def test_rebuild_with_the_same_terms_keeps_their_clock():
 def test_falling_behind_takes_coarser_steps_and_recovers():
     """
     Issue 20, item 3: a skipped step doubles the schedule's step (once per step taken, up to
-    max_model_step_deg), steps taken coarser are counted, and after RELAX_AFTER_S of input
-    time with none skipped the step halves again.  Replay never skips, so it never coarsens.
+    max_model_step_deg), steps taken coarser are counted, and after a calm of input time with
+    none skipped the step halves again: RELAX_MIN_S at first, doubled (up to RELAX_MAX_S)
+    when the finer step fails within RELAX_MAX_S of a halving, RELAX_MIN_S again for a fall
+    later than that.  Replay never skips, so it never coarsens.
     """
-    from bb_friction_ros.runner import RELAX_AFTER_S
+    from bb_friction_ros.runner import RELAX_MAX_S, RELAX_MIN_S
     runner = ModelRunner(RecordingScrew(), model_rate_hz=1.0, model_step_deg=1.0,
                          max_model_step_deg=4.0)
     d = math.radians(1.0)
@@ -303,13 +305,24 @@ def test_falling_behind_takes_coarser_steps_and_recovers():
     steps = [p.stepped for p in feed(12, True)]
     assert steps == [True, False, False, False] * 3                    # every 4 deg now
     assert runner.stats.coarse_steps == 4 and runner.stats.skipped_steps == 4
-    n = int(RELAX_AFTER_S / 1e-3)
-    feed(n - 30, True)                                                 # last skip at 9 ms
-    assert runner.scale == 4.0                                         # not yet
-    feed(40, True)
+
+    def calm_then_halves(calm_s, scale):
+        """After calm_s of no skip (1 ms inputs; the last skip 9-30 ms back), halved."""
+        n = int(round(calm_s / 1e-3))
+        feed(n - 30, True)
+        assert runner.scale == 2.0 * scale                             # not yet
+        feed(40, True)
+        assert runner.scale == scale
+
+    calm_then_halves(RELAX_MIN_S, 2.0)
+    feed(2, False)                          # the finer step fails at once: back to 4 deg
+    assert runner.scale == 4.0
+    calm_then_halves(2.0 * RELAX_MIN_S, 2.0)      # and the next calm is twice as long
+    calm_then_halves(2.0 * RELAX_MIN_S, 1.0)
+    feed(int(RELAX_MAX_S / 1e-3), True)     # a long calm at the fine step
+    feed(1, False)                          # a new fall: from RELAX_MIN_S again
     assert runner.scale == 2.0
-    feed(n, True)
-    assert runner.scale == 1.0
+    calm_then_halves(RELAX_MIN_S, 1.0)
     assert runner.step_rad == pytest.approx(d)
 
 
@@ -480,3 +493,22 @@ def test_predictions_built_without_init_are_the_dataclass_s_own():
     assert dataclasses.astuple(fast) == values
     with pytest.raises(dataclasses.FrozenInstanceError):
         fast.torque_total_nm = 1.0
+
+
+@pytest.mark.parametrize("rev_s, fits", [(0.0, True), (1.0, True), (5.0, True),
+                                         (10.0, False), (20.0, False)])
+def test_a_profile_is_started_only_if_it_can_end_before_the_next_step(rev_s, fits):
+    """
+    ``profile_fits``: the look-ahead's steps at the steps' mean wall time (0.2 ms here)
+    against the input time to the next step.  Defaults (1.8 deg, 100 Hz floor, 14.4 deg
+    largest step; 2 periods, 3 points): 1 rev/s, 2 steps (0.4 ms) before a step due in 5 ms;
+    5 rev/s, 36 deg in 2 x 2 steps (0.8 ms) against 1 ms; 10 rev/s, 72 deg in 2 x 3 steps
+    (1.2 ms) against 0.5 ms; 20 rev/s, 10 steps (2 ms) against 0.25 ms.  Standstill: a
+    single point, no step.
+    """
+    from bb_friction_ros.config import bundled_config
+    from bb_friction_ros.runner import build_runner
+    runner = build_runner(bundled_config("ball_screw.yaml"), 100.0)
+    runner._step_time_s = 2e-4
+    w = 2 * math.pi * rev_s
+    assert runner.profile_fits(InputSample(0.0, 0.0, w, 1500.0), 2.0, 3) is fits
