@@ -599,11 +599,10 @@ class ModelRunner:
         w = abs(sample.nut_velocity_rad_s)
         if w == 0.0 or n_points < 2:
             return True
-        step = self.step_rad * self.scale
+        step = self.step_rad * self.scale       # as profile_seed gives them
         period = self.period_s * self.scale
-        horizon = horizon_periods * max(w * period, step)
-        n_sub = max(1, math.ceil(horizon / (n_points - 1) / (self.step_rad * self.max_scale)
-                                 - ANGLE_RESOLUTION_RAD))
+        n_sub = _profile_substeps(_horizon_rad(w, period, step, horizon_periods), n_points,
+                                  self.step_rad * self.max_scale)
         cost_s = (n_points - 1) * n_sub * (self._step_time_s or 0.0)
         return cost_s < min(step / w, period)
 
@@ -651,8 +650,17 @@ def profile_horizon_rad(seed, horizon_periods):
     than one model step in it, the model step: the profile never covers less than
     ``horizon_periods`` steps of the angle schedule.
     """
-    w = abs(seed.sample.nut_velocity_rad_s)
-    return horizon_periods * max(w * seed.period_s, seed.step_rad)
+    return _horizon_rad(abs(seed.sample.nut_velocity_rad_s), seed.period_s, seed.step_rad,
+                        horizon_periods)
+
+
+def _horizon_rad(w_abs, period_s, step_rad, horizon_periods):
+    return horizon_periods * max(w_abs * period_s, step_rad)
+
+
+def _profile_substeps(horizon_rad, n_points, max_step_rad):
+    """Model steps from one profile point to the next (each at most ``max_step_rad``)."""
+    return max(1, math.ceil(horizon_rad / (n_points - 1) / max_step_rad - ANGLE_RESOLUTION_RAD))
 
 
 def profile_due(last, sample):
@@ -707,9 +715,10 @@ def look_ahead_profile(seed, horizon_periods=2.0, n_points=3, should_stop=None):
     if w == 0.0 or n_points < 2:
         return angles, torques, converged
     screw = seed.screw
-    d_angle = math.copysign(profile_horizon_rad(seed, horizon_periods) / (n_points - 1), w)
+    horizon = profile_horizon_rad(seed, horizon_periods)
+    d_angle = math.copysign(horizon / (n_points - 1), w)
     dt = d_angle / w
-    n_sub = max(1, math.ceil(abs(d_angle) / seed.max_step_rad - ANGLE_RESOLUTION_RAD))
+    n_sub = _profile_substeps(horizon, n_points, seed.max_step_rad)
     for i in range(1, n_points):
         for j in range(1, n_sub + 1):
             if should_stop is not None and should_stop():
