@@ -113,6 +113,15 @@ class PhysicalSettings:
     # (preload) rms at 4.3x less cost, while theta's B2B change (contacts closing at ball
     # configurations) is off by 22-31 % (docs/discrepancy.md).  The value chosen is run
     # again at the replay path's step.
+    # A physical parameter and its empirical twin (TWINS) whose readings differ by less than
+    # bic_threshold are one ambiguous effect: the data cannot tell them apart, and the
+    # choice is the prior's.  On such a tie the model's own parameter is kept (as it already
+    # was when it led): the twins' documented meaning is the parameter's ("load_dependent:
+    # the model's friction coefficient is off"), the issue names the parameters the first
+    # suspects, and only the parameter is what the node can run.  Its cost is a false alarm
+    # on a recording whose twin is truly empirical and not separable from the parameter
+    # (measured: docs/discrepancy.md, "The tie rule").  False: the better score decides.
+    prefer_model_parameter_on_tie: bool = True
     coarse_step_factor: int = field(4, "1", "the trial runs of the smooth candidates "
                                     "(friction_coefficient, preload) step this many times "
                                     "coarser (model step and time floor); 1: every run at "
@@ -535,6 +544,7 @@ class PhysicalSearch:
     threads: int = 1
     coarse_step_factor: int = 1
     coarse_runs: int = 0         # of ``runs``: at the coarse step (smooth candidates)
+    tie: bool = False            # chosen on a tie with its twin (prefer_model_parameter_on_tie)
 
     def as_dict(self):
         """Return summary.json → ``physical``."""
@@ -544,6 +554,7 @@ class PhysicalSearch:
                 "coarse_runs": self.coarse_runs,
                 "coarse_step_factor": self.coarse_step_factor,
                 "chosen": self.chosen.effect() if self.chosen else None,
+                "chosen_on_tie": self.tie if self.chosen else False,
                 "penalised_bic_none": self.none_score,
                 "trials": self.trials, "identifiability": self.identifiability,
                 "notes": self.notes}
@@ -815,7 +826,14 @@ def select_with_physics(physics, rec_all, ok, fit_mask, r, x_fit, settings, skip
             return best
 
         bounds = {name: bound(name) for name in PHYSICAL}
-        active = sorted((n for n in PHYSICAL if bounds[n] < none.score),
+
+        def tie_margin(name):
+            # a candidate whose twin "none" holds may be kept on a tie with it (_tie): it
+            # needs to come within bic_threshold of "none", not to beat it
+            return settings.bic_threshold if ps.prefer_model_parameter_on_tie and \
+                TWINS[name] in none.terms.names else 0.0
+
+        active = sorted((n for n in PHYSICAL if bounds[n] < none.score + tie_margin(n)),
                         key=bounds.get)[:ps.refine_candidates]
 
         def best_of(name):
@@ -875,8 +893,13 @@ def select_with_physics(physics, rec_all, ok, fit_mask, r, x_fit, settings, skip
                                      selection=True)
             return f
 
+        def tie(o):
+            return ps.prefer_model_parameter_on_tie and _tie(o, none, settings)
+
         best = None
-        for o in sorted(finals, key=lambda o: o.score):
+        # the candidates that beat "none", or tie with its twin, first; then by score
+        for o in sorted(finals, key=lambda o: (not (o.score < none.score or tie(o)),
+                                               o.score)):
             best = confirmed(o)
             if best is not None:
                 break
@@ -972,12 +995,26 @@ def select_with_physics(physics, rec_all, ok, fit_mask, r, x_fit, settings, skip
             search.notes.append(f"{kind.name}: its best value {best.value:.4g} is at the "
                                 "edge of the values tried, not a minimum of its profile: "
                                 "not adopted")
-        if interval[0] is not None and best.score < none.score and \
+        # on a tie with the twin (_tie) the parameter must lower the cross-validated RMSE
+        # against "none" without the twin, as a term must against the model without it:
+        # against the twin itself it is as much a coin toss as the BIC
+        ties = not best.score < none.score and tie(best)
+        versus = tuple(m for m in none.members if m[0].name != TWINS[kind.name]) if ties \
+            else none.members
+        if interval[0] is not None and (best.score < none.score or ties) and \
                 cv_rmse(best.members, x_fit, r_fit - best.delta_fit, settings.cv_folds) < \
-                cv_rmse(none.members, x_fit, r_fit, settings.cv_folds):
+                cv_rmse(versus, x_fit, r_fit, settings.cv_folds):
             delta = np.nan_to_num(best.run.delta_nm[ok])
             search.chosen = PhysicalChoice(kind, best.value, bases[kind.name], interval,
                                            best.run, delta)
+            search.tie = ties
+            if ties:
+                search.notes.append(
+                    f"{kind.name} ties with {TWINS[kind.name]}: the empirical-only model "
+                    f"({', '.join(none.terms.names)}) fits better by a penalised BIC of "
+                    f"{best.score - none.score:.1f} < {settings.bic_threshold}, which the data "
+                    "cannot tell from noise; the model's own parameter is kept "
+                    "(prefer_model_parameter_on_tie)")
             search.identifiability = identifiability(search.chosen, best, none, x_fit, r_fit,
                                                      settings, tau, skip, fixed, other)
             chosen = best
@@ -990,6 +1027,22 @@ def select_with_physics(physics, rec_all, ok, fit_mask, r, x_fit, settings, skip
         search.coarse_runs = runner.coarse_runs
         search.selections = count[0]
     return chosen.terms, chosen.trace, chosen.ctx, search
+
+
+def _tie(o, none, settings):
+    """
+    Tell whether the physical outcome ``o`` ties with its twin in "none" (``TWINS``).
+
+    A tie: "none" holds the twin, ``o`` does not, and ``o``'s empirical terms are among
+    "none"'s other terms (the parameter takes the twin's place one for one, with no term
+    "none" does not need), and ``o`` scores within ``bic_threshold`` of "none" (penalised
+    BIC, the parameter counted like the twin): the threshold at which the workflow calls
+    any two explanations one ambiguous effect.
+    """
+    twin = TWINS[o.kind.name]
+    names = set(none.terms.names)
+    return twin in names and twin not in o.terms.names and \
+        set(o.terms.names) <= names - {twin} and o.score - none.score < settings.bic_threshold
 
 
 def identifiability(choice, best, none, x, r, settings, tau, skip, fixed, other=None):
@@ -1022,6 +1075,8 @@ def identifiability(choice, best, none, x, r, settings, tau, skip, fixed, other=
             text = (f"{name} and {twin} are one ambiguous effect here (BIC difference "
                     f"{delta:.1f} < {settings.bic_threshold}); {name}, the model's own "
                     "parameter, was kept")
+            if delta < 0.0:
+                text += f" on the tie ({twin} fits better by {-delta:.1f})"
         out.append({"pair": [name, twin], "chosen": name, "bic_difference":
                     delta if math.isfinite(delta) else None, "separated": bool(separated),
                     "statement": text})
@@ -1041,10 +1096,14 @@ def identifiability(choice, best, none, x, r, settings, tau, skip, fixed, other=
                     "terms": [list(best.terms.names), list(other.terms.names)]})
     gap = none.score - best.score
     emp = ", ".join(none.terms.names) or "no term"
+    text = (f"{name} rather than the best empirical-only model ({emp}): penalised BIC "
+            f"{gap:.1f} lower" if gap >= 0.0 else
+            f"{name} rather than the best empirical-only model ({emp}), which fits better by "
+            f"a penalised BIC of {-gap:.1f} < {settings.bic_threshold}: a tie with {twin}, "
+            "and the model's own parameter is kept")
     out.append({"pair": [name, "best empirical model"], "chosen": name,
                 "bic_difference": gap, "separated": bool(gap >= settings.bic_threshold),
-                "statement": f"{name} rather than the best empirical-only model ({emp}): "
-                             f"penalised BIC {gap:.1f} lower"})
+                "statement": text})
     return out
 
 

@@ -270,3 +270,82 @@ def test_empirical_effects_only_name_no_physics(cache):
 def test_bad_physical_setting_names_the_key():
     with pytest.raises(ConfigError, match=r"discrepancy.physical.theta_max_deg"):
         ph.load_physical_settings({"theta_max_deg": 0.0})
+
+
+def _outcome(kind, terms, score):
+    return ph.Outcome(None if kind is None else ph.PHYSICAL[kind], None,
+                      type("Terms", (), {"names": tuple(terms)})(), [], None, score)
+
+
+def test_tie_is_a_one_for_one_swap_with_the_twin_within_the_threshold():
+    """_tie: the parameter takes its twin's place, no term "none" lacks, within bic_threshold."""
+    s = DiscrepancySettings()
+    none = _outcome(None, ["load_dependent", "seal_drag"], -1000.0)
+    mu = "friction_coefficient"
+    # within the threshold, in place of the twin, with none's other terms or fewer
+    assert ph._tie(_outcome(mu, ["seal_drag"], -1000.0 + 0.5 * s.bic_threshold), none, s)
+    assert ph._tie(_outcome(mu, [], -1000.0 + 0.9 * s.bic_threshold), none, s)
+    # the data tell them apart: the twin better by the threshold or more
+    assert not ph._tie(_outcome(mu, ["seal_drag"], -1000.0 + s.bic_threshold), none, s)
+    # not one for one: a term "none" does not need, or the twin kept beside the parameter
+    assert not ph._tie(_outcome(mu, ["stribeck"], -1001.0), none, s)
+    assert not ph._tie(_outcome(mu, ["load_dependent"], -999.0), none, s)
+    # "none" without the twin: nothing to tie with (the preload's twin is seal_drag)
+    assert not ph._tie(_outcome(mu, [], -999.0), _outcome(None, ["seal_drag"], -1000.0), s)
+    assert ph._tie(_outcome("preload", [], -999.0), _outcome(None, ["seal_drag"], -1000.0), s)
+
+
+def test_prefer_model_parameter_on_tie_is_a_validated_setting():
+    assert ph.PhysicalSettings().prefer_model_parameter_on_tie is True
+    assert ph.load_physical_settings({"prefer_model_parameter_on_tie": False}) \
+        .prefer_model_parameter_on_tie is False
+    with pytest.raises(ConfigError, match=r"discrepancy.physical.prefer_model_parameter_on_tie"):
+        ph.load_physical_settings({"prefer_model_parameter_on_tie": 1})
+
+
+def test_mu_on_a_tie_with_load_dependent_is_kept_as_the_model_parameter(cache):
+    """
+    mu 0.097 (3 % off): its change and load_dependent's column are one column here.
+
+    Without the tie rule the empirical twin, 0.25 better in penalised BIC (a noise draw: the
+    threshold of an effect is 10), is named, and mu only reported as ambiguous with it.  With
+    it (the default) mu, the model's own parameter, is kept, within 5 %, said to be chosen
+    on a tie, and the pair is still reported as one ambiguous effect.
+    """
+    rec, cfg, _ = short_case(cache, {"material": {"friction_coefficient": 0.097}},
+                             noise_nm=0.006, seed=1)
+
+    def run(prefer):
+        return analyse(rec, DiscrepancySettings(), ph.PhysicsContext(
+            cfg, RUNNER, ph.PhysicalSettings(enabled=True,
+                                             prefer_model_parameter_on_tie=prefer)))
+
+    off = run(False)
+    assert ph.chosen(off.physical) is None and off.terms.names == ("load_dependent",)
+    pair = [x for x in off.ambiguities if x["pair"] == ["load_dependent",
+                                                        "friction_coefficient"]]
+    assert pair and not pair[0]["separated"] and 0.0 < pair[0]["bic_difference"] < 10.0
+    on = run(True)
+    choice = ph.chosen(on.physical)
+    assert choice is not None and choice.kind.name == "friction_coefficient"
+    assert abs(choice.value / 0.097 - 1.0) <= MU_RELATIVE_TOLERANCE
+    assert on.terms.names == () and on.physical.tie
+    assert ph.summary(on.physical)["chosen_on_tie"] is True
+    pair = [x for x in on.ambiguities if x["pair"] == ["friction_coefficient",
+                                                       "load_dependent"]]
+    assert pair and not pair[0]["separated"] and "on the tie" in pair[0]["statement"]
+    assert any("ties with load_dependent" in n for n in on.physical.notes)
+
+
+def test_a_separable_empirical_load_dependent_is_not_read_as_mu(cache):
+    """
+    The config right and a load_dependent of 25 % of the model's friction (2 mN m noise):
+    its column has no offset, mu's change has (the model torque is affine in the load, not
+    proportional), and the data tell them apart by far more than bic_threshold; the tie rule
+    does not apply and no physical parameter is named.
+    """
+    terms = TermSet([sy.make_term("load_dependent", {"k_nm_per_n": 4e-5})])
+    rec, cfg, _ = short_case(cache, {}, terms, noise_nm=0.002, seed=3)
+    a = analyse(rec, DiscrepancySettings(),
+                ph.PhysicsContext(cfg, RUNNER, ph.PhysicalSettings(enabled=True)))
+    assert ph.chosen(a.physical) is None and a.terms.names == ("load_dependent",)
