@@ -349,3 +349,52 @@ def test_a_separable_empirical_load_dependent_is_not_read_as_mu(cache):
     a = analyse(rec, DiscrepancySettings(),
                 ph.PhysicsContext(cfg, RUNNER, ph.PhysicalSettings(enabled=True)))
     assert ph.chosen(a.physical) is None and a.terms.names == ("load_dependent",)
+
+
+def test_unseen_on_hold_compares_the_held_out_evidence_with_a_parameters_price():
+    """A change the held-out part holds less evidence of than a parameter's price is unseen."""
+    s = DiscrepancySettings()
+    noise = type("Noise", (), {"std_nm": 0.004, "tau": 1.0})()
+    n_fit, n_hold = 700, 300
+    price = math.log(n_fit) + s.bic_threshold
+
+    def search():
+        out = ph.PhysicalSearch()
+        out.chosen = ph.PhysicalChoice(ph.PHYSICAL["contact_angle_deviation"], 2.0, 0.0,
+                                       (1.9, 2.1), None, None)
+        return out
+
+    # |d|^2 / sigma^2 just above, then just below the price
+    for ratio, unseen in ((1.05, False), (0.95, True)):
+        d = np.full(n_hold, 0.004 * math.sqrt(ratio * price / n_hold))
+        got = search()
+        assert ph.unseen_on_hold(got, d, noise, n_fit, s) is unseen
+        assert got.heldout_judged is not unseen
+        assert bool(got.notes) is unseen
+    assert not ph.unseen_on_hold(ph.PhysicalSearch(), np.zeros(n_hold), noise, n_fit, s)
+
+
+def test_theta_the_held_out_part_cannot_see_is_not_rejected_there(cache):
+    """
+    theta 2.154 deg on the issue's 20 s drive: its B2B contacts close on the fit part, hardly
+    on the held-out part (|d|^2/sigma^2 = 1.8 there, against a price of 16.6).  The
+    held-out RMSE after is not below before (by the last bits: this noise draw), so the
+    held-out check rejected a value found within 0.01 deg (bench seeds 6 and 8 lost two
+    thetas so).  The held-out part does not judge it now, and says so.
+    """
+    rng = np.random.default_rng(1)
+    rec, cfg, _ = sy.physical_case(sy.physical_trajectory(),
+                                   {"errors": {"theta_amplitude_deg": 2.154}}, TermSet(),
+                                   0.004, rng, cache, MODEL_RATE_HZ)
+    a = analyse(rec, DiscrepancySettings(),
+                ph.PhysicsContext(cfg, RUNNER, ph.PhysicalSettings(enabled=True)))
+    choice = ph.chosen(a.physical)
+    assert choice is not None and choice.kind.name == "contact_angle_deviation"
+    assert abs(choice.value - 2.154) <= THETA_TOLERANCE_DEG
+    assert not a.physical.heldout_judged and ph.summary(a.physical)["heldout_judged"] is False
+    assert any("does not judge contact_angle_deviation" in n for n in a.physical.notes)
+    # the check as it was: after < before fails on the held-out part
+    hold = ~a.fit_mask
+    rms = [np.sqrt(np.mean(v[hold] ** 2)) for v in (a.residual_nm - a.added_nm,
+                                                     a.residual_nm)]
+    assert not rms[0] < rms[1]
