@@ -1019,6 +1019,8 @@ def select_with_physics(physics, rec_all, ok, fit_mask, r, x_fit, settings, skip
                     "(prefer_model_parameter_on_tie)")
             search.identifiability = identifiability(search.chosen, best, none, x_fit, r_fit,
                                                      settings, tau, skip, fixed, other)
+            search.identifiability += _other_parameters(kind, best, bounds, finals, points,
+                                                        settings)
             chosen = best
         else:
             search.identifiability = _unchosen_twins(bounds, points, none, settings)
@@ -1106,6 +1108,33 @@ def identifiability(choice, best, none, x, r, settings, tau, skip, fixed, other=
     out.append({"pair": [name, "best empirical model"], "chosen": name,
                 "bic_difference": gap, "separated": bool(gap >= settings.bic_threshold),
                 "statement": text})
+    return out
+
+
+def _other_parameters(kind, best, bounds, finals, points, settings):
+    """
+    Name another of the model's parameters the data cannot tell from the chosen one.
+
+    Its best penalised BIC (its refined reading, or the bound of a bracket run's change at
+    its free scale) within ``bic_threshold`` of the chosen reading's: the two are one
+    ambiguous effect.  Below its onset a preload's change is a load column, as a small
+    change of mu is (bench seed 9: mu 0.1007 hidden, preload 1.352 um chosen 0.64 ahead of
+    mu 0.10074); no prior prefers one model parameter to another, so the pair is named.
+    """
+    out = []
+    for name in PHYSICAL:
+        if name == kind.name or not points[name]:
+            continue
+        score = min([bounds[name]] + [o.score for o in finals if o.kind.name == name])
+        gap = score - best.score
+        if math.isfinite(gap) and gap < settings.bic_threshold:
+            out.append({"pair": [kind.name, name], "chosen": kind.name, "bic_difference": gap,
+                        "separated": False,
+                        "statement": f"{kind.name} and {name} are one ambiguous effect here "
+                                     f"(a change of {PHYSICAL[name].param} of the model's "
+                                     f"shape comes within a penalised BIC of {gap:.1f} < "
+                                     f"{settings.bic_threshold} of the chosen reading); "
+                                     f"{kind.name} was chosen"})
     return out
 
 

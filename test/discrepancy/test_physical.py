@@ -398,3 +398,23 @@ def test_theta_the_held_out_part_cannot_see_is_not_rejected_there(cache):
     rms = [np.sqrt(np.mean(v[hold] ** 2)) for v in (a.residual_nm - a.added_nm,
                                                      a.residual_nm)]
     assert not rms[0] < rms[1]
+
+
+def test_another_model_parameter_within_the_threshold_is_named_ambiguous():
+    """_other_parameters: a parameter whose best reading is within bic_threshold is named."""
+    s = DiscrepancySettings()
+    best = _outcome("preload", [], -100.0)
+    bounds = {"friction_coefficient": -100.0 + 0.5 * s.bic_threshold,
+              "contact_angle_deviation": -100.0 + 2.0 * s.bic_threshold, "preload": -100.0}
+    points = {name: [None] for name in ph.PHYSICAL}
+    out = ph._other_parameters(ph.PHYSICAL["preload"], best, bounds, [], points, s)
+    assert [x["pair"] for x in out] == [["preload", "friction_coefficient"]]
+    assert not out[0]["separated"] and "one ambiguous effect" in out[0]["statement"]
+    # a refined reading counts when it is better than the bound
+    finals = [_outcome("contact_angle_deviation", [], -99.0)]
+    out = ph._other_parameters(ph.PHYSICAL["preload"], best, bounds, finals, points, s)
+    assert [x["pair"][1] for x in out] == ["contact_angle_deviation", "friction_coefficient"]
+    # a parameter never run is not named
+    points["friction_coefficient"] = []
+    out = ph._other_parameters(ph.PHYSICAL["preload"], best, bounds, [], points, s)
+    assert out == []
