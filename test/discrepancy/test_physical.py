@@ -395,8 +395,8 @@ def test_theta_the_held_out_part_cannot_see_is_not_rejected_there(cache):
     assert any("does not judge contact_angle_deviation" in n for n in a.physical.notes)
     # the check as it was: after < before fails on the held-out part
     hold = ~a.fit_mask
-    rms = [np.sqrt(np.mean(v[hold] ** 2)) for v in (a.residual_nm - a.added_nm,
-                                                     a.residual_nm)]
+    after, before = a.residual_nm - a.added_nm, a.residual_nm
+    rms = [np.sqrt(np.mean(v[hold] ** 2)) for v in (after, before)]
     assert not rms[0] < rms[1]
 
 
