@@ -108,11 +108,6 @@ class PhysicalSettings:
     # share this process's cores without a cluster's start-up and transfers.
     threads: int = field(2, "1", "trial runs of a batch run at once in this many threads of "
                          "this process (with workers = 1)", lo=1, hi=64)
-    # The change of mu or of the preload is smooth in the nut angle (it scales or shifts
-    # every contact's force); a 4x coarser step reproduces it within 0.6 % (mu) and 1.8 %
-    # (preload) rms at 4.3x less cost, while theta's B2B change (contacts closing at ball
-    # configurations) is off by 22-31 % (docs/discrepancy.md).  The value chosen is run
-    # again at the replay path's step.
     # A physical parameter and its empirical twin (TWINS) whose readings differ by less than
     # bic_threshold are one ambiguous effect: the data cannot tell them apart, and the
     # choice is the prior's.  On such a tie the model's own parameter is kept (as it already
@@ -122,6 +117,11 @@ class PhysicalSettings:
     # on a recording whose twin is truly empirical and not separable from the parameter
     # (measured: docs/discrepancy.md, "The tie rule").  False: the better score decides.
     prefer_model_parameter_on_tie: bool = True
+    # The change of mu or of the preload is smooth in the nut angle (it scales or shifts
+    # every contact's force); a 4x coarser step reproduces it within 0.6 % (mu) and 1.8 %
+    # (preload) rms at 4.3x less cost, while theta's B2B change (contacts closing at ball
+    # configurations) is off by 22-31 % (docs/discrepancy.md).  The value chosen is run
+    # again at the replay path's step.
     coarse_step_factor: int = field(4, "1", "the trial runs of the smooth candidates "
                                     "(friction_coefficient, preload) step this many times "
                                     "coarser (model step and time floor); 1: every run at "
