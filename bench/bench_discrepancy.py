@@ -150,6 +150,12 @@ def main():
     ap.add_argument("--physical", action="store_true",
                     help="issue 21: hidden physical parameters (theta, mu, preload) and "
                     "empirical-only cases; time and model runs on a 60 s 1 kHz recording")
+    ap.add_argument("--empirical-effect", default=None, choices=PHYSICAL_EXTRA_EFFECTS,
+                    help="--physical: the empirical-only cases all hide this effect (e.g. "
+                         "load_dependent, mu's near-twin: the false alarms of the tie rule)")
+    ap.add_argument("--no-tie-rule", action="store_true",
+                    help="--physical: prefer_model_parameter_on_tie off (the better score "
+                         "decides between a physical parameter and its twin), to compare")
     ap.add_argument("--physical-cases", type=int, default=4,
                     help="--physical: cases per hidden physical parameter")
     ap.add_argument("--empirical-cases", type=int, default=4,
@@ -590,14 +596,20 @@ THETA_TARGET_DEG = 0.3
 MU_TARGET_RELATIVE = 0.05
 
 
-def physical_case_of(kind, rng, cache, mismatch):
-    """Return (recording, base config, noise, hidden physical or None, hidden TermSet)."""
+def physical_case_of(kind, rng, cache, mismatch, empirical=PHYSICAL_EXTRA_EFFECTS):
+    """
+    Return (recording, base config, noise, hidden physical or None, hidden TermSet).
+
+    ``empirical``: the effects an empirical-only case (``kind`` None) draws from
+    (``--empirical-effect`` narrows it to one, e.g. the twin of a physical candidate).
+    """
     from bb_friction_ros.discrepancy import synthetic as sy
     from bb_friction_ros.discrepancy.synthetic import draw_effect
     hidden = sy.draw_physical(kind, rng) if kind else {}
     extra = []
     if kind is None or rng.uniform() < 0.5:
-        extra = [draw_effect(str(rng.choice(PHYSICAL_EXTRA_EFFECTS)), rng)]
+        pool = PHYSICAL_EXTRA_EFFECTS if kind else empirical
+        extra = [draw_effect(str(rng.choice(pool)), rng)]
     terms = TermSet(extra)
     noise_nm = float(rng.uniform(*NOISE_RANGE_NM))
     if not mismatch:
@@ -629,12 +641,15 @@ def physical_section(args):
     print(f"physical cases: {len(kinds)} (20 s at 50 Hz, model 50 Hz floor; noise "
           f"{NOISE_RANGE_NM[0] * 1e3:g}-{NOISE_RANGE_NM[1] * 1e3:g} mN m"
           f"{', --mismatch: shapes outside the library, AR(1) noise' if args.mismatch else ''}"
+          f"{', tie rule off' if args.no_tie_rule else ''}"
           f"; load {os.getloadavg()[0]:.1f})")
     for kind in kinds:
-        rec, cfg, noise, hidden, terms = physical_case_of(kind, rng, cache, args.mismatch)
+        rec, cfg, noise, hidden, terms = physical_case_of(
+            kind, rng, cache, args.mismatch,
+            (args.empirical_effect,) if args.empirical_effect else PHYSICAL_EXTRA_EFFECTS)
         t0 = time.perf_counter()
-        a = analyse(rec, settings, ph.PhysicsContext(cfg, runner,
-                                                     ph.PhysicalSettings(enabled=True)))
+        a = analyse(rec, settings, ph.PhysicsContext(cfg, runner, ph.PhysicalSettings(
+            enabled=True, prefer_model_parameter_on_tie=not args.no_tie_rule)))
         wall = time.perf_counter() - t0
         choice = ph.chosen(a.physical)
         true = None
@@ -672,6 +687,7 @@ def physical_section(args):
                "snr": effect_rms / noise_std, "evidence": evidence, "price": price,
                "evidence_beside": evidence_beside,
                "phys_wall": a.physical.wall_s,
+               "tie": bool(choice is not None and a.physical.tie),
                "interval": choice.interval_95 if choice else None}
         rows.append(row)
         print(f"  hidden {kind or '(empirical only)'} {'' if true is None else f'{true:.4g}'}"
@@ -682,7 +698,8 @@ def physical_section(args):
               f"terms' columns {evidence_beside:.0f}; price {price:.1f}); {row['runs']} "
               f"runs, {wall:.1f} s ({a.physical.wall_s:.1f} s in model runs); "
               f"held-out reducible {reducible * 1e3:.2f} mN m, 80 % removed: {ok_rmse}"
-              f"{'; ambiguous: ' + str(row['ambiguous']) if row['ambiguous'] else ''}",
+              f"{'; ambiguous: ' + str(row['ambiguous']) if row['ambiguous'] else ''}"
+              f"{'; chosen on a tie with its twin' if row['tie'] else ''}",
               flush=True)
     phys = [r for r in rows if r["hidden"]]
     emp = [r for r in rows if not r["hidden"]]
@@ -727,6 +744,12 @@ def physical_section(args):
     alarms = sum(r["named"] is not None for r in emp)
     print(f"false alarms (empirical only, a physical parameter named): {alarms}/{len(emp)} "
           "(goal <= 10 %)")
+    ties = [r for r in rows if r["tie"]]
+    print(f"chosen on a tie with the twin (prefer_model_parameter_on_tie): {len(ties)} "
+          f"({sum(r['named'] == r['hidden'] for r in ties)} the hidden parameter, "
+          f"{sum(r['hidden'] is None for r in ties)} false alarms, "
+          f"{sum(r['hidden'] is not None and r['named'] != r['hidden'] for r in ties)} "
+          "another parameter's)")
     judged = [r for r in rows if r["reducible"] > 0]
     print(f"held-out: >= 80 % of the reducible gap removed in "
           f"{sum(r['rmse_ok'] for r in judged)}/{len(judged)} cases with a reducible gap")

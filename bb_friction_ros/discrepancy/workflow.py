@@ -278,7 +278,12 @@ def analyse(rec, settings, physics=None):
     added = shift + (terms.torque_nm(x.t_s, x.nut_angle_rad, x.nut_velocity_rad_s,
                                      x.axial_load_n, x.nut_accel_rad_s2)
                      if len(terms) else np.zeros(n))
-    if (len(terms) or physical.chosen(search)) and not _rms((r - added)[hold]) < _rms(r[hold]):
+    # a chosen physical change alone that the held-out part cannot see (B2B contacts that
+    # close on the fit part only) is not judged there: its verdict would be the noise's
+    unseen = not len(terms) and physical.unseen_on_hold(search, shift[hold], noise, n_fit,
+                                                        settings)
+    if (len(terms) or physical.chosen(search)) and not unseen and \
+            not _rms((r - added)[hold]) < _rms(r[hold]):
         # selected on the fit part but no better on the held-out part (e.g. a recording
         # whose two halves disagree): not an effect this recording supports
         rejected, terms, added, shift = terms, TermSet(), np.zeros(n), np.zeros(n)

@@ -270,3 +270,151 @@ def test_empirical_effects_only_name_no_physics(cache):
 def test_bad_physical_setting_names_the_key():
     with pytest.raises(ConfigError, match=r"discrepancy.physical.theta_max_deg"):
         ph.load_physical_settings({"theta_max_deg": 0.0})
+
+
+def _outcome(kind, terms, score):
+    return ph.Outcome(None if kind is None else ph.PHYSICAL[kind], None,
+                      type("Terms", (), {"names": tuple(terms)})(), [], None, score)
+
+
+def test_tie_is_a_one_for_one_swap_with_the_twin_within_the_threshold():
+    """_tie: the parameter takes its twin's place, no term "none" lacks, within bic_threshold."""
+    s = DiscrepancySettings()
+    none = _outcome(None, ["load_dependent", "seal_drag"], -1000.0)
+    mu = "friction_coefficient"
+    # within the threshold, in place of the twin, with none's other terms or fewer
+    assert ph._tie(_outcome(mu, ["seal_drag"], -1000.0 + 0.5 * s.bic_threshold), none, s)
+    assert ph._tie(_outcome(mu, [], -1000.0 + 0.9 * s.bic_threshold), none, s)
+    # the data tell them apart: the twin better by the threshold or more
+    assert not ph._tie(_outcome(mu, ["seal_drag"], -1000.0 + s.bic_threshold), none, s)
+    # not one for one: a term "none" does not need, or the twin kept beside the parameter
+    assert not ph._tie(_outcome(mu, ["stribeck"], -1001.0), none, s)
+    assert not ph._tie(_outcome(mu, ["load_dependent"], -999.0), none, s)
+    # "none" without the twin: nothing to tie with (the preload's twin is seal_drag)
+    assert not ph._tie(_outcome(mu, [], -999.0), _outcome(None, ["seal_drag"], -1000.0), s)
+    assert ph._tie(_outcome("preload", [], -999.0), _outcome(None, ["seal_drag"], -1000.0), s)
+
+
+def test_prefer_model_parameter_on_tie_is_a_validated_setting():
+    assert ph.PhysicalSettings().prefer_model_parameter_on_tie is True
+    assert ph.load_physical_settings({"prefer_model_parameter_on_tie": False}) \
+        .prefer_model_parameter_on_tie is False
+    with pytest.raises(ConfigError, match=r"discrepancy.physical.prefer_model_parameter_on_tie"):
+        ph.load_physical_settings({"prefer_model_parameter_on_tie": 1})
+
+
+def test_mu_on_a_tie_with_load_dependent_is_kept_as_the_model_parameter(cache):
+    """
+    mu 0.097 (3 % off): its change and load_dependent's column are one column here.
+
+    Without the tie rule the empirical twin, 0.25 better in penalised BIC (a noise draw: the
+    threshold of an effect is 10), is named, and mu only reported as ambiguous with it.  With
+    it (the default) mu, the model's own parameter, is kept, within 5 %, said to be chosen
+    on a tie, and the pair is still reported as one ambiguous effect.
+    """
+    rec, cfg, _ = short_case(cache, {"material": {"friction_coefficient": 0.097}},
+                             noise_nm=0.006, seed=1)
+
+    def run(prefer):
+        return analyse(rec, DiscrepancySettings(), ph.PhysicsContext(
+            cfg, RUNNER, ph.PhysicalSettings(enabled=True,
+                                             prefer_model_parameter_on_tie=prefer)))
+
+    off = run(False)
+    assert ph.chosen(off.physical) is None and off.terms.names == ("load_dependent",)
+    pair = [x for x in off.ambiguities if x["pair"] == ["load_dependent",
+                                                        "friction_coefficient"]]
+    assert pair and not pair[0]["separated"] and 0.0 < pair[0]["bic_difference"] < 10.0
+    on = run(True)
+    choice = ph.chosen(on.physical)
+    assert choice is not None and choice.kind.name == "friction_coefficient"
+    assert abs(choice.value / 0.097 - 1.0) <= MU_RELATIVE_TOLERANCE
+    assert on.terms.names == () and on.physical.tie
+    assert ph.summary(on.physical)["chosen_on_tie"] is True
+    pair = [x for x in on.ambiguities if x["pair"] == ["friction_coefficient",
+                                                       "load_dependent"]]
+    assert pair and not pair[0]["separated"] and "on the tie" in pair[0]["statement"]
+    assert any("ties with load_dependent" in n for n in on.physical.notes)
+
+
+def test_a_separable_empirical_load_dependent_is_not_read_as_mu(cache):
+    """
+    The config right and a load_dependent of 25 % of the model's friction (2 mN m noise):
+    its column has no offset, mu's change has (the model torque is affine in the load, not
+    proportional), and the data tell them apart by far more than bic_threshold; the tie rule
+    does not apply and no physical parameter is named.
+    """
+    terms = TermSet([sy.make_term("load_dependent", {"k_nm_per_n": 4e-5})])
+    rec, cfg, _ = short_case(cache, {}, terms, noise_nm=0.002, seed=3)
+    a = analyse(rec, DiscrepancySettings(),
+                ph.PhysicsContext(cfg, RUNNER, ph.PhysicalSettings(enabled=True)))
+    assert ph.chosen(a.physical) is None and a.terms.names == ("load_dependent",)
+
+
+def test_unseen_on_hold_compares_the_held_out_evidence_with_a_parameters_price():
+    """A change the held-out part holds less evidence of than a parameter's price is unseen."""
+    s = DiscrepancySettings()
+    noise = type("Noise", (), {"std_nm": 0.004, "tau": 1.0})()
+    n_fit, n_hold = 700, 300
+    price = math.log(n_fit) + s.bic_threshold
+
+    def search():
+        out = ph.PhysicalSearch()
+        out.chosen = ph.PhysicalChoice(ph.PHYSICAL["contact_angle_deviation"], 2.0, 0.0,
+                                       (1.9, 2.1), None, None)
+        return out
+
+    # |d|^2 / sigma^2 just above, then just below the price
+    for ratio, unseen in ((1.05, False), (0.95, True)):
+        d = np.full(n_hold, 0.004 * math.sqrt(ratio * price / n_hold))
+        got = search()
+        assert ph.unseen_on_hold(got, d, noise, n_fit, s) is unseen
+        assert got.heldout_judged is not unseen
+        assert bool(got.notes) is unseen
+    assert not ph.unseen_on_hold(ph.PhysicalSearch(), np.zeros(n_hold), noise, n_fit, s)
+
+
+def test_theta_the_held_out_part_cannot_see_is_not_rejected_there(cache):
+    """
+    theta 2.154 deg on the issue's 20 s drive: its B2B contacts close on the fit part, hardly
+    on the held-out part (|d|^2/sigma^2 = 1.8 there, against a price of 16.6).  The
+    held-out RMSE after is not below before (by the last bits: this noise draw), so the
+    held-out check rejected a value found within 0.01 deg (bench seeds 6 and 8 lost two
+    thetas so).  The held-out part does not judge it now, and says so.
+    """
+    rng = np.random.default_rng(1)
+    rec, cfg, _ = sy.physical_case(sy.physical_trajectory(),
+                                   {"errors": {"theta_amplitude_deg": 2.154}}, TermSet(),
+                                   0.004, rng, cache, MODEL_RATE_HZ)
+    a = analyse(rec, DiscrepancySettings(),
+                ph.PhysicsContext(cfg, RUNNER, ph.PhysicalSettings(enabled=True)))
+    choice = ph.chosen(a.physical)
+    assert choice is not None and choice.kind.name == "contact_angle_deviation"
+    assert abs(choice.value - 2.154) <= THETA_TOLERANCE_DEG
+    assert not a.physical.heldout_judged and ph.summary(a.physical)["heldout_judged"] is False
+    assert any("does not judge contact_angle_deviation" in n for n in a.physical.notes)
+    # the check as it was: after < before fails on the held-out part
+    hold = ~a.fit_mask
+    after, before = a.residual_nm - a.added_nm, a.residual_nm
+    rms = [np.sqrt(np.mean(v[hold] ** 2)) for v in (after, before)]
+    assert not rms[0] < rms[1]
+
+
+def test_another_model_parameter_within_the_threshold_is_named_ambiguous():
+    """_other_parameters: a parameter whose best reading is within bic_threshold is named."""
+    s = DiscrepancySettings()
+    best = _outcome("preload", [], -100.0)
+    bounds = {"friction_coefficient": -100.0 + 0.5 * s.bic_threshold,
+              "contact_angle_deviation": -100.0 + 2.0 * s.bic_threshold, "preload": -100.0}
+    points = {name: [None] for name in ph.PHYSICAL}
+    out = ph._other_parameters(ph.PHYSICAL["preload"], best, bounds, [], points, s)
+    assert [x["pair"] for x in out] == [["preload", "friction_coefficient"]]
+    assert not out[0]["separated"] and "one ambiguous effect" in out[0]["statement"]
+    # a refined reading counts when it is better than the bound
+    finals = [_outcome("contact_angle_deviation", [], -99.0)]
+    out = ph._other_parameters(ph.PHYSICAL["preload"], best, bounds, finals, points, s)
+    assert [x["pair"][1] for x in out] == ["contact_angle_deviation", "friction_coefficient"]
+    # a parameter never run is not named
+    points["friction_coefficient"] = []
+    out = ph._other_parameters(ph.PHYSICAL["preload"], best, bounds, [], points, s)
+    assert out == []
