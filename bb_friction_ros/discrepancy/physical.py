@@ -1003,13 +1003,24 @@ def select_with_physics(physics, rec_all, ok, fit_mask, r, x_fit, settings, skip
         ties = not best.score < none.score and tie(best)
         versus = tuple(m for m in none.members if m[0].name != TWINS[kind.name]) if ties \
             else none.members
+        # a reading smaller than the "none" it beats is not vetoed by cross-validation
+        # (_cv_judges): the empirical selection's own rule
+        smaller = not _cv_judges(best, none, ties)
         if interval[0] is not None and (best.score < none.score or ties) and \
-                cv_rmse(best.members, x_fit, r_fit - best.delta_fit, settings.cv_folds) < \
-                cv_rmse(versus, x_fit, r_fit, settings.cv_folds):
+                (smaller or
+                 cv_rmse(best.members, x_fit, r_fit - best.delta_fit, settings.cv_folds) <
+                 cv_rmse(versus, x_fit, r_fit, settings.cv_folds)):
             delta = np.nan_to_num(best.run.delta_nm[ok])
             search.chosen = PhysicalChoice(kind, best.value, bases[kind.name], interval,
                                            best.run, delta)
             search.tie = ties
+            if smaller:
+                search.notes.append(
+                    f"{' + '.join((kind.name,) + best.terms.names)} (the parameter counted "
+                    f"as one term) beats the larger empirical-only model "
+                    f"({', '.join(none.terms.names)}) by a penalised BIC of "
+                    f"{none.score - best.score:.1f}; cross-validation, which vetoes only "
+                    "a larger model against a smaller one, is not applied against it")
             if ties:
                 search.notes.append(
                     f"{kind.name} ties with {TWINS[kind.name]}: the empirical-only model "
@@ -1031,6 +1042,26 @@ def select_with_physics(physics, rec_all, ok, fit_mask, r, x_fit, settings, skip
         search.coarse_runs = runner.coarse_runs
         search.selections = count[0]
     return chosen.terms, chosen.trace, chosen.ctx, search
+
+
+def _cv_judges(o, none, ties):
+    """
+    Tell whether the blocked cross-validation may veto the physical outcome ``o``.
+
+    The empirical selection (``selection.select``) lets cross-validation veto only the
+    larger model against the next smaller choice: a smaller model that wins in penalised
+    BIC is never vetoed by a larger one's folds.  The same rule here, with the terms counted
+    as the selection counts sizes and the physical parameter counted as one term (as
+    ``_penalised`` charges it one term's price): a reading with fewer terms than the "none"
+    it beats is not judged against it.  Bench seed 14: mu 0.07842 alone (the truth to
+    0.01 %) beat seal_drag + load_dependent + offset by 28 and was vetoed because the three
+    free terms fit the folds a little better.  A reading of the same size or larger, and a
+    reading kept on a tie (``_tie``: it does not beat "none"; it is judged against "none"
+    without the twin, as before), are judged as before.
+    """
+    if ties or not o.score < none.score:
+        return True
+    return not len(o.terms.names) + 1 < len(none.terms.names)
 
 
 def _tie(o, none, settings):
