@@ -60,6 +60,11 @@ LEVEL_NAMES = {OK: "OK", WARN: "WARN", ERROR: "ERROR"}
 INLINE, MODEL = 0, 1
 # How long the model thread waits for work before it looks at the stop flag again [s].
 IDLE_WAIT_S = 0.5
+# Longest wait of a look-ahead profile's step for a gap between inputs [s] (``_gap_gate``):
+# 2.5x the slowest controller period served (0.5 kHz), so at every supported input rate a
+# gap, not this, releases the step; when the inputs stop, a profile ends this much later per
+# step (nothing to collide with then).
+GAP_WAIT_S = 0.005
 
 
 @dataclass
@@ -98,6 +103,8 @@ class LiveSchedule:
         self._stepping = False      # the input thread is stepping the model
         self._profiling = False     # the model thread is stepping a copy for a profile
         self._profile_seed = None
+        self._gaps = 0              # idle gaps of the input thread so far (``flush``)
+        self._gated = False         # a profile's step waits for the next gap
         self._profiled = None       # the seed of the last profile published
         self._runner = runner
         self._assembler = assembler
@@ -238,8 +245,8 @@ class LiveSchedule:
             if self._profile_wanted(runner, pred, sample):
                 # captured now (the next input may step the runner), handed over when idle
                 self._deferred_seed = (runner.profile_seed(sample), stamp)
-                if not self.defer_to_idle:
-                    self.flush()
+        if not (self.defer_to_idle and self.deferred):
+            self.flush()        # nothing left to do for this input: the gap begins
 
     @property
     def deferred(self):
@@ -252,10 +259,17 @@ class LiveSchedule:
             self._deferred_groups = False
             self.publish_groups()
         seed, self._deferred_seed = self._deferred_seed, None
-        if seed is not None:
-            with self._lock:
-                self._profile_seed = seed
-                self._wake.notify()
+        # The input thread is idle from here to its next input: a gap.  A look-ahead
+        # profile steps only in such gaps (``_gap_gate``), so that it runs while the input
+        # thread waits instead of beside it: on two cores shared with the controller, a
+        # profile running when an input arrived delayed it by 0.25-0.7 ms (p99), whether
+        # the profile held the GIL or not (docs/node_latency.md).
+        with self._lock:
+            self._gaps += 1
+            if seed is not None:
+                self._profile_seed = seed + (self._gaps - 1,)   # this gap is its first
+            if seed is not None or self._gated:
+                self._wake.notify()     # not at every input: a wake-up costs the GIL
 
     def _backlog(self, recv_ns):
         """Whether an input received at ``recv_ns`` has waited longer than max_backlog_s."""
@@ -364,7 +378,7 @@ class LiveSchedule:
             if runner.stats.resets != resets:
                 self._reset_warning(runner.stats.resets, sample.stamp_s)
             if self._profile_wanted(runner, pred, sample):
-                self._profile_seed = (runner.profile_seed(sample), stamp)
+                self._profile_seed = (runner.profile_seed(sample), stamp, self._gaps)
 
     def _profile_wanted(self, runner, pred, sample):
         """
@@ -403,12 +417,29 @@ class LiveSchedule:
                          "model state reset" + (f" ({more} more resets since the last "
                                                 "warning)" if more > 0 else ""))
 
+    def _gap_gate(self, seen):
+        """
+        A profile's ``should_stop``: wait for an idle gap of the input thread, then decide.
+
+        ``seen``: a one-item list, the gap count the profile's last step began in (steps wait
+        for a later gap, or GAP_WAIT_S when none comes).  Returns True (abandon) when an
+        input waits for the model thread, the input thread steps, or the node stops.
+        """
+        with self._lock:
+            self._gated = True
+            self._wake.wait_for(lambda: self._gaps > seen[0] or self._queue or self._stop,
+                                timeout=GAP_WAIT_S)
+            self._gated = False
+            seen[0] = self._gaps
+            return bool(self._busy or self._stepping or self._queue or self._stop)
+
     def _publish_profile(self, seed_stamp):
-        seed, stamp = seed_stamp
+        seed, stamp, gap = seed_stamp
         horizon, points = self._profile_shape
+        seen = [gap]
         try:
             out = look_ahead_profile(seed, horizon, points,
-                                     should_stop=lambda: self._busy or self._stepping)
+                                     should_stop=lambda: self._gap_gate(seen))
         except Exception as exc:     # a failed look-ahead must not stop the answers
             with self._lock:
                 self._profile_errors += 1

@@ -463,3 +463,49 @@ def test_changed_groups_and_profiles_wait_for_the_input_thread_to_be_idle():
     assert [(a[0], a[1]) for a in later.answers] == [(a[0], a[1]) for a in now.answers]
     assert [(p.groups, s) for p, s in later.groups] == [(p.groups, s) for p, s in now.groups]
     assert [p[1:] for p in later.profiles] == [p[1:] for p in now.profiles]
+
+
+def test_a_profile_steps_only_in_the_input_threads_gaps(monkeypatch):
+    """
+    A look-ahead profile takes each of its steps in an idle gap of the input thread (after
+    an input was answered and nothing is left to do for it), not beside it: the first in
+    the gap after the step that seeded it, the next only after the next input's answer.
+    Without inputs, GAP_WAIT_S releases the step (nothing to collide with then).
+    """
+    import math
+    from bb_friction_ros import live as live_module
+    j = ("nut_joint",)
+    w = 2 * math.pi            # 1 rev/s, 1 kHz: a profile of 3 points is 2 steps of 3.6 deg
+
+    def state(k):
+        return Event("nut_state", 1e-3 * k, j, (w * 1e-3 * k,), (w,))
+
+    def seed_a_profile(live, rec):
+        """Feed inputs 20 ms apart until one leaves a profile unfinished after 20 ms."""
+        feed(live, [Event("axial_load", 0.0, value=1500.0)])
+        for k in range(300):
+            n = len(rec.profiles)
+            feed(live, [state(k)], wait_idle=False)
+            time.sleep(0.02)
+            if not live.idle() or len(rec.profiles) > n:
+                return k, n
+        raise AssertionError("no profile was started")
+
+    monkeypatch.setattr(live_module, "GAP_WAIT_S", 30.0)
+    live, rec = schedule()
+    try:
+        k, n = seed_a_profile(live, rec)
+        time.sleep(0.3)         # far more than a profile's steps take
+        assert len(rec.profiles) == n and not live.idle()   # waits for a gap
+        feed(live, [state(k + 1)], wait_idle=False)
+        wait_until(lambda: len(rec.profiles) == n + 1, timeout_s=5.0)
+    finally:
+        live.stop()
+    monkeypatch.setattr(live_module, "GAP_WAIT_S", 0.005)
+    live, rec = schedule()
+    try:
+        k, n = seed_a_profile(live, rec)
+        wait_until(lambda: len(rec.profiles) == n + 1, timeout_s=5.0)   # no input came
+    finally:
+        live.stop()
+    assert len(rec.profiles[-1][2]) == 3
