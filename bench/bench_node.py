@@ -209,6 +209,8 @@ NODE_COMMANDS = {
     "traced": ([sys.executable, _DIAG], {}),
     "handoff": ([sys.executable, _DIAG], {"BENCH_HANDOFF_ALL": "1"}),
     "nodefer": ([sys.executable, _DIAG], {"BENCH_NO_DEFER": "1"}),
+    "spinnogil": ([sys.executable, _DIAG], {"BENCH_SPIN_PROFILE": "nogil"}),
+    "spinpy": ([sys.executable, _DIAG], {"BENCH_SPIN_PROFILE": "py"}),
 }
 
 
@@ -254,6 +256,25 @@ def trace_summary(path):
                          f"{np.percentile(wait[m], 50):.3f}/{np.percentile(wait[m], 99):.3f}"
                          f" ms, to publish {np.percentile(work[m], 50):.3f}/"
                          f"{np.percentile(work[m], 99):.3f} ms")
+    prof = t["span_kind"] == 0
+    if prof.any() and (inline & ~stepped).any():
+        # held answers whose time in the node overlapped a look-ahead profile's run
+        start, end = t["span_start_ns"][prof], t["span_end_ns"][prof]
+        order = np.argsort(start)
+        start, end = start[order], np.maximum.accumulate(end[order])
+        held = inline & ~stepped
+        first = np.searchsorted(start, t["published_ns"][held]) - 1
+        hit = (first >= 0) & (end[np.maximum(first, 0)] > t["recv_ns"][held])
+        total = 1e-6 * (t["published_ns"][held] - t["recv_ns"][held])
+        parts.append(f"held answers overlapping a profile {100 * hit.mean():.1f} %"
+                     + (f", their in-node p99 {np.percentile(total[hit], 99):.3f} ms"
+                        if hit.any() else "")
+                     + (f", the others' {np.percentile(total[~hit], 99):.3f} ms"
+                        if (~hit).any() else ""))
+        if "span_cpu_ns" in t:
+            parts.append("profile runs wall/CPU p50 "
+                         f"{1e-6 * np.median(t['span_end_ns'][prof] - t['span_start_ns'][prof]):.3f}"
+                         f"/{1e-6 * np.median(t['span_cpu_ns'][prof]):.3f} ms")
     return "      trace: " + "; ".join(parts)
 
 
@@ -300,8 +321,9 @@ def main():
                          "look-ahead profiles, 'handoff' = every due step with inputs waiting "
                          "handed to the model thread (the rule before 2026-11-25), 'nodefer' = "
                          "groups and profile hand-off right after a step (before "
-                         "2026-11-25), 'traced' = "
-                         "as shipped")
+                         "2026-11-25), 'spinnogil' / 'spinpy' = each look-ahead profile "
+                         "replaced by 0.5-0.6 ms of CPU without / with the GIL held (is a "
+                         "profile's cost the GIL or a core?), 'traced' = as shipped")
     ap.add_argument("--trace", metavar="DIR",
                     help="run friction_node and the diagnostic kinds through "
                          "bench/diag_node.py with BENCH_TRACE: per answer, receipt -> "
