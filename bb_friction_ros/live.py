@@ -419,11 +419,12 @@ class LiveSchedule:
 
     def _gap_gate(self, seen):
         """
-        A profile's ``should_stop``: wait for an idle gap of the input thread, then decide.
+        Wait for an idle gap of the input thread, then say whether a profile should stop.
 
-        ``seen``: a one-item list, the gap count the profile's last step began in (steps wait
-        for a later gap, or GAP_WAIT_S when none comes).  Returns True (abandon) when an
-        input waits for the model thread, the input thread steps, or the node stops.
+        A look-ahead profile's ``should_stop``.  ``seen``: a one-item list, the gap count
+        the profile's last step began in (steps wait for a later gap, or GAP_WAIT_S when
+        none comes).  Returns True (abandon) when an input waits for the model thread, the
+        input thread steps, or the node stops.
         """
         with self._lock:
             self._gated = True

@@ -272,8 +272,8 @@ def trace_summary(path):
                      + (f", the others' {np.percentile(total[~hit], 99):.3f} ms"
                         if (~hit).any() else ""))
         if "span_cpu_ns" in t:
-            parts.append("profile runs wall/CPU p50 "
-                         f"{1e-6 * np.median(t['span_end_ns'][prof] - t['span_start_ns'][prof]):.3f}"
+            wall = t["span_end_ns"][prof] - t["span_start_ns"][prof]
+            parts.append(f"profile runs wall/CPU p50 {1e-6 * np.median(wall):.3f}"
                          f"/{1e-6 * np.median(t['span_cpu_ns'][prof]):.3f} ms")
     return "      trace: " + "; ".join(parts)
 

@@ -118,7 +118,8 @@ def _trace(path):
             b = np.array(spans, dtype=np.int64).reshape(-1, 4)
         np.savez(path, recv_ns=a[:, 0], entered_ns=a[:, 1], published_ns=a[:, 2],
                  thread=a[:, 3], stepped=a[:, 4], more_waiting=a[:, 5],
-                 span_start_ns=b[:, 0], span_end_ns=b[:, 1], span_kind=b[:, 2], span_cpu_ns=b[:, 3])
+                 span_start_ns=b[:, 0], span_end_ns=b[:, 1], span_kind=b[:, 2],
+                 span_cpu_ns=b[:, 3])
 
     live.LiveSchedule.on_nut_state = on_nut_state
     live.LiveSchedule._finish = finish
