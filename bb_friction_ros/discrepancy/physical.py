@@ -1001,6 +1001,22 @@ def select_with_physics(physics, rec_all, ok, fit_mask, r, x_fit, settings, skip
         # against "none" without the twin, as a term must against the model without it:
         # against the twin itself it is as much a coin toss as the BIC
         ties = not best.score < none.score and tie(best)
+        broken = None             # (fit gap, held-out gap) of a tie the held-out part broke
+        fit_gap, held_gap = best.score - none.score, 0.0
+        if ties:
+            # the fit part cannot choose; the held-out part's evidence on the same question
+            # is added (_heldout_gap): the tie stands if the whole recording cannot choose
+            held_gap = _heldout_gap(best, none, rec_all, ok, fit_mask, r, tau)
+            if not fit_gap + held_gap < settings.bic_threshold:
+                ties, broken = False, (fit_gap, held_gap)
+                search.notes.append(
+                    f"{kind.name} tied with {TWINS[kind.name]} on the fit part "
+                    f"({', '.join(none.terms.names)} better by a penalised BIC of "
+                    f"{fit_gap:.1f} < {settings.bic_threshold}), but the held-out part, "
+                    f"where both readings predict as fitted, adds {held_gap:.1f} for "
+                    f"{TWINS[kind.name]}: {fit_gap + held_gap:.1f} >= "
+                    f"{settings.bic_threshold} over the whole recording, which is no tie; "
+                    f"{TWINS[kind.name]} is kept")
         versus = tuple(m for m in none.members if m[0].name != TWINS[kind.name]) if ties \
             else none.members
         # a reading smaller than the "none" it beats is not vetoed by cross-validation
@@ -1025,16 +1041,21 @@ def select_with_physics(physics, rec_all, ok, fit_mask, r, x_fit, settings, skip
                 search.notes.append(
                     f"{kind.name} ties with {TWINS[kind.name]}: the empirical-only model "
                     f"({', '.join(none.terms.names)}) fits better by a penalised BIC of "
-                    f"{best.score - none.score:.1f} < {settings.bic_threshold}, which the data "
-                    "cannot tell from noise; the model's own parameter is kept "
-                    "(prefer_model_parameter_on_tie)")
+                    f"{fit_gap:.1f} on the fit part and {held_gap:.1f} on the held-out part "
+                    f"(-2 ln of the likelihood ratio of the two readings as fitted), "
+                    f"{fit_gap + held_gap:.1f} < {settings.bic_threshold} over the whole "
+                    "recording, "
+                    + ("which favours the parameter" if fit_gap + held_gap < 0.0 else
+                       "which the data cannot tell from noise")
+                    + "; the model's own parameter is kept (prefer_model_parameter_on_tie)")
             search.identifiability = identifiability(search.chosen, best, none, x_fit, r_fit,
                                                      settings, tau, skip, fixed, other)
             search.identifiability += _other_parameters(kind, best, bounds, finals, points,
                                                         settings)
             chosen = best
         else:
-            search.identifiability = _unchosen_twins(bounds, points, none, settings)
+            search.identifiability = _unchosen_twins(bounds, points, none, settings, kind,
+                                                     broken)
             chosen = none
     finally:
         runner.close()
@@ -1042,6 +1063,37 @@ def select_with_physics(physics, rec_all, ok, fit_mask, r, x_fit, settings, skip
         search.coarse_runs = runner.coarse_runs
         search.selections = count[0]
     return chosen.terms, chosen.trace, chosen.ctx, search
+
+
+def _heldout_gap(o, none, rec_all, ok, fit_mask, r, tau):
+    """
+    Return the held-out part's evidence for "none" against the physical outcome ``o``.
+
+    Both readings as fitted on the fit part (``o``: its change d(p) and its terms; "none":
+    its terms, the twin among them) predict the held-out part, and the gap is
+    n'_h ln(RSS_h(o) / RSS_h(none)), n'_h = n_h / tau: the held-out part's -2 ln of the
+    likelihood ratio, in the units of the penalised BIC (both readings pay the same price,
+    so the prices cancel).  Positive: "none" predicts the held-out part better.  The noise
+    of the two parts is independent, so this evidence adds to the fit part's gap.  A tie
+    (``_tie``) is the fit part's statement that it cannot choose between the parameter and
+    its twin; the held-out part, which the choice between the two has not seen, holds more
+    evidence on the same question (the 30 % of samples the selection left out).
+    """
+    hold = ~fit_mask
+    if not hold.any():
+        return 0.0
+    from bb_friction_ros.discrepancy.data import inputs_of
+    x = inputs_of(rec_all, np.flatnonzero(ok)[hold])
+    r_hold = r[hold]
+    d_hold = np.nan_to_num(o.run.delta_nm[ok])[hold]
+
+    def rss(e):
+        return max(float(e @ e), 1e-300)
+
+    args = (x.t_s, x.nut_angle_rad, x.nut_velocity_rad_s, x.axial_load_n, x.nut_accel_rad_s2)
+    e_o = r_hold - d_hold - (o.terms.torque_nm(*args) if len(o.terms) else 0.0)
+    e_none = r_hold - (none.terms.torque_nm(*args) if len(none.terms) else 0.0)
+    return r_hold.size / max(tau, 1.0) * math.log(rss(e_o) / rss(e_none))
 
 
 def _cv_judges(o, none, ties):
@@ -1169,17 +1221,30 @@ def _other_parameters(kind, best, bounds, finals, points, settings):
     return out
 
 
-def _unchosen_twins(bounds, points, none, settings):
+def _unchosen_twins(bounds, points, none, settings, kind=None, broken=None):
     """
     When no physical effect is chosen, name a physical twin the data cannot exclude.
 
     ``bounds``: each candidate's best penalised BIC at the free scale of a run's change (an
     optimistic bound); within ``bic_threshold`` of the chosen empirical model, the twin term
-    and the parameter are one ambiguous effect.
+    and the parameter are one ambiguous effect.  ``broken``: the (fit part, held-out part)
+    gaps of ``kind``'s tie that the held-out part broke (``_heldout_gap``): the whole
+    recording tells that pair apart, and the evidence is said.
     """
     out = []
     for name, twin in TWINS.items():
         if twin not in none.terms.names or not points[name] or not math.isfinite(bounds[name]):
+            continue
+        if broken is not None and kind is not None and name == kind.name:
+            fit_gap, held_gap = broken
+            out.append({"pair": [twin, name], "chosen": twin,
+                        "bic_difference": fit_gap + held_gap, "separated": True,
+                        "statement": f"{twin} rather than {name}: {twin} fits the fit part "
+                                     f"better by a penalised BIC of {fit_gap:.1f} and "
+                                     f"predicts the held-out part better by {held_gap:.1f} "
+                                     f"(-2 ln of the likelihood ratio), "
+                                     f"{fit_gap + held_gap:.1f} >= {settings.bic_threshold} "
+                                     "over the whole recording"})
             continue
         gap = bounds[name] - none.score
         if gap < settings.bic_threshold:
