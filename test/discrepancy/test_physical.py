@@ -533,3 +533,25 @@ def test_a_tie_the_held_out_part_breaks_keeps_the_empirical_twin(cache):
     pair = [x for x in a.ambiguities if x["pair"] == ["load_dependent",
                                                       "friction_coefficient"]]
     assert pair and pair[0]["separated"] and pair[0]["bic_difference"] >= 10.0
+
+
+def test_mu_beside_its_twin_is_refined_when_only_the_twin_held_bound_sees_it(cache):
+    """
+    mu 0.112 with a hidden load_dependent of k = 3.98e-5 N m/N (bench seed 13's case, 5.4 mN
+    m noise, the 20 s drive, seed 1).  "none" holds load_dependent; mu's bound with the twin
+    left out cannot reach it (one scale of mu's change cannot be both the hidden mu's and
+    the twin's), so mu was never refined and load_dependent alone was named.  With the twin
+    held as well, mu's change at its free scale beats "none"; mu is refined on that profile
+    and named beside load_dependent, within 5 %.
+    """
+    terms = TermSet([sy.make_term("load_dependent", {"k_nm_per_n": 3.98e-5})])
+    rec, cfg, _ = case(cache, {"material": {"friction_coefficient": 0.112}}, terms,
+                       noise_nm=0.0054, seed=1)
+    a = analyse(rec, DiscrepancySettings(),
+                ph.PhysicsContext(cfg, RUNNER, ph.PhysicalSettings(enabled=True)))
+    choice = ph.chosen(a.physical)
+    assert choice is not None and choice.kind.name == "friction_coefficient"
+    assert abs(choice.value / 0.112 - 1.0) <= MU_RELATIVE_TOLERANCE
+    assert a.terms.names == ("load_dependent",)
+    lo, hi = choice.interval_95
+    assert lo <= choice.value <= hi
