@@ -750,12 +750,15 @@ def select_with_physics(physics, rec_all, ok, fit_mask, r, x_fit, settings, skip
        of its own: only the model column changes between trials.
     3. A candidate is refined only if its change, at the best scale (the free amplitude of
        a bracket run), could beat "none": the bound no value of the same shape exceeds.
+       Where "none" holds the candidate's twin and that bound fails, the bound with the
+       twin held too; a candidate that passes so is refined with the twin beside it.
        At most ``refine_candidates`` are refined, in rounds of one model run each (a batch
        on the Dask cluster), at ``_next_value``; after the first round the empirical
        selection is re-run at the candidate's best value and its terms are held instead.
     4. The empirical selection at each refined candidate's best value decides, under the
        penalised BIC (the parameter counted) and the blocked cross-validation, against
-       "none".
+       "none".  A tie with the twin (``_tie``) is decided on the whole recording: the
+       held-out part's evidence on the two readings is added (``_heldout_gap``).
     """
     from bb_friction_ros.discrepancy.selection import cv_rmse, select
     ps = physics.settings
