@@ -688,6 +688,10 @@ def physical_section(args):
                "evidence_beside": evidence_beside,
                "phys_wall": a.physical.wall_s,
                "tie": bool(choice is not None and a.physical.tie),
+               # a tie on the fit part that the held-out part's evidence broke
+               # (physical._heldout_gap): the tie rule alone would have named the parameter
+               "tie_broken": any("on the fit part" in n and n.endswith("is kept")
+                                 for n in a.physical.notes),
                "interval": choice.interval_95 if choice else None}
         rows.append(row)
         print(f"  hidden {kind or '(empirical only)'} {'' if true is None else f'{true:.4g}'}"
@@ -699,7 +703,8 @@ def physical_section(args):
               f"runs, {wall:.1f} s ({a.physical.wall_s:.1f} s in model runs); "
               f"held-out reducible {reducible * 1e3:.2f} mN m, 80 % removed: {ok_rmse}"
               f"{'; ambiguous: ' + str(row['ambiguous']) if row['ambiguous'] else ''}"
-              f"{'; chosen on a tie with its twin' if row['tie'] else ''}",
+              f"{'; chosen on a tie with its twin' if row['tie'] else ''}"
+              f"{'; a fit-part tie the held-out part broke' if row['tie_broken'] else ''}",
               flush=True)
     phys = [r for r in rows if r["hidden"]]
     emp = [r for r in rows if not r["hidden"]]
@@ -750,6 +755,11 @@ def physical_section(args):
           f"{sum(r['hidden'] is None for r in ties)} false alarms, "
           f"{sum(r['hidden'] is not None and r['named'] != r['hidden'] for r in ties)} "
           "another parameter's)")
+    broken = [r for r in rows if r["tie_broken"]]
+    print(f"fit-part ties with the twin that the held-out part broke (the twin kept; the tie "
+          f"rule on the fit part alone would have named the parameter): {len(broken)} "
+          f"({sum(r['hidden'] is None for r in broken)} on empirical-only recordings, "
+          f"{sum(r['hidden'] is not None for r in broken)} with a hidden parameter)")
     judged = [r for r in rows if r["reducible"] > 0]
     print(f"held-out: >= 80 % of the reducible gap removed in "
           f"{sum(r['rmse_ok'] for r in judged)}/{len(judged)} cases with a reducible gap")
