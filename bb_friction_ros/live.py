@@ -51,8 +51,7 @@ import threading
 import time
 from typing import Callable
 
-from bb_friction_ros.runner import (InputError, look_ahead_profile, profile_due,
-                                    STEP_TIME_WEIGHT)
+from bb_friction_ros.runner import InputError, look_ahead_profile, profile_due
 
 # Levels of diagnostic_msgs/DiagnosticStatus (bytes there; plain ints here, no ROS).
 OK, WARN, ERROR = 0, 1, 2
@@ -66,25 +65,6 @@ IDLE_WAIT_S = 0.5
 # gap, not this, releases the step; when the inputs stop, a profile ends this much later per
 # step (nothing to collide with then).
 GAP_WAIT_S = 0.005
-
-
-def fits_in_gap(since_input_s, cost_s, period_s):
-    """
-    Whether work of ``cost_s`` [s] started now ends before the next input is due.
-
-    ``since_input_s``: the time since the last input arrived; ``period_s``: the inputs'
-    period (the next is due that long after the last).
-
-    Unknown cost or period, or a cost of a whole period or more (it could never fit): True,
-    the work goes now rather than never.
-    """
-    if cost_s is None or period_s is None or cost_s >= period_s:
-        return True
-    return since_input_s + cost_s <= period_s
-
-
-def _running_mean(mean, value):
-    return value if mean is None else mean + STEP_TIME_WEIGHT * (value - mean)
 
 
 @dataclass
@@ -125,12 +105,6 @@ class LiveSchedule:
         self._profile_seed = None
         self._gaps = 0              # idle gaps of the input thread so far (``flush``)
         self._gated = False         # a profile's step waits for the next gap
-        # running means (weighted as the runner's step time): the inputs' period from their
-        # stamps [s], and the wall time of one of a profile's steps [s]
-        self._input_period_s = None
-        self._prev_stamp = None
-        self._profile_step_s = None
-        self._profile_step_t0 = None
         self._profiled = None       # the seed of the last profile published
         self._runner = runner
         self._assembler = assembler
@@ -242,10 +216,6 @@ class LiveSchedule:
                 w["first_stamp"] = sample.stamp_s
             w["last_stamp"] = sample.stamp_s
             w["accepted"] += 1
-            if self._prev_stamp is not None and sample.stamp_s > self._prev_stamp:
-                self._input_period_s = _running_mean(self._input_period_s,
-                                                     sample.stamp_s - self._prev_stamp)
-            self._prev_stamp = sample.stamp_s
             runner = self._runner
             due = runner.step_due(sample)
             if self._busy or (due and more_waiting and self._backlog(recv_ns)
@@ -452,42 +422,22 @@ class LiveSchedule:
         Wait for an idle gap of the input thread, then say whether a profile should stop.
 
         A look-ahead profile's ``should_stop``.  ``seen``: a one-item list, the gap count
-        the profile's last step began in.  A step waits for a later gap it fits in
-        (``fits_in_gap``: the profile's steps' mean wall time, from the time since the last
-        input, ends before the next input is due at the inputs' mean period; after a stepped
-        answer there is often no room, after a held one there is), but for one more gap at
-        most, or GAP_WAIT_S when none comes.  Returns True (abandon) when an input waits
-        for the model thread, the input thread steps, or the node stops.
+        the profile's last step began in (steps wait for a later gap, or GAP_WAIT_S when
+        none comes).  Returns True (abandon) when an input waits for the model thread, the
+        input thread steps, or the node stops.
         """
-        t = time.perf_counter()
         with self._lock:
-            if self._profile_step_t0 is not None:       # the profile's step just taken
-                self._profile_step_s = _running_mean(self._profile_step_s,
-                                                     t - self._profile_step_t0)
             self._gated = True
-            end = t + GAP_WAIT_S
-            # a gap the step fits in (it ends before the next input is due), or the one after
-            # a gap it did not fit in: one input period late at most
-            skipped = False
-            while self._wake.wait_for(lambda: self._gaps > seen[0] or self._queue
-                                      or self._stop, timeout=max(end - time.perf_counter(), 0.0)):
-                seen[0] = self._gaps
-                since = 0.0 if self._last_input is None else \
-                    self._monotonic() - self._last_input
-                if skipped or self._queue or self._stop or fits_in_gap(
-                        since, self._profile_step_s, self._input_period_s):
-                    break
-                skipped = True
+            self._wake.wait_for(lambda: self._gaps > seen[0] or self._queue or self._stop,
+                                timeout=GAP_WAIT_S)
             self._gated = False
             seen[0] = self._gaps
-            self._profile_step_t0 = time.perf_counter()
             return bool(self._busy or self._stepping or self._queue or self._stop)
 
     def _publish_profile(self, seed_stamp):
         seed, stamp, gap = seed_stamp
         horizon, points = self._profile_shape
         seen = [gap]
-        self._profile_step_t0 = None
         try:
             out = look_ahead_profile(seed, horizon, points,
                                      should_stop=lambda: self._gap_gate(seen))

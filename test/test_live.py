@@ -509,17 +509,3 @@ def test_a_profile_steps_only_in_the_input_threads_gaps(monkeypatch):
     finally:
         live.stop()
     assert len(rec.profiles[-1][2]) == 3
-
-
-def test_a_profile_step_waits_for_a_gap_it_fits_in():
-    """
-    ``fits_in_gap``: a step of a look-ahead profile starts in a gap only if, at its mean
-    cost, it ends before the next input is due; with the cost or the period unknown, or a
-    cost no gap could hold, it goes at once (late rather than never).
-    """
-    from bb_friction_ros.live import fits_in_gap
-    assert fits_in_gap(0.1e-3, 0.4e-3, 1e-3)             # after a held answer
-    assert not fits_in_gap(0.7e-3, 0.4e-3, 1e-3)         # after a slow stepped answer
-    assert fits_in_gap(0.6e-3, 0.4e-3, 1e-3)             # ends just as the input is due
-    assert fits_in_gap(0.3e-3, 1.2e-3, 1e-3)             # never fits: goes now
-    assert fits_in_gap(0.9e-3, None, 1e-3) and fits_in_gap(0.9e-3, 0.4e-3, None)
