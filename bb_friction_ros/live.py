@@ -27,6 +27,8 @@ Who steps and answers:
 
 After a step, once per model period of motion (``runner.profile_due``), the model thread
 steps a copy of the state ahead for the look-ahead profile, giving way to the next step.
+Each of the copy's steps waits for an idle gap of the input thread (``flush`` marks one
+after every answered input), so that it does not take a core when an input arrives.
 
 Answer age is bounded: an answer older than ``max_answer_age_s`` since the input was
 received by the middleware is not published but counted (``shed_inputs``); its sample still
