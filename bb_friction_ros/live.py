@@ -13,6 +13,10 @@ Who steps and answers:
 - no step due (most inputs at low speed: the model steps every ``model_step_deg`` of nut
   rotation, the inputs come at the controller's rate): answered at once from the latest
   model state, in the caller's (input) thread;
+- a step due at an input close to the one before it (at most
+  ``step_after_answer_fraction`` of a step: 1 rev/s at 1 kHz): answered at once as well,
+  and the step taken after the answer in the same thread, in the gap before the next input
+  (``runner.settle``; the runner's rule, so replay gives the same answers);
 - a step due, the model thread idle and no other input waiting (``more_waiting`` False:
   the input thread's batch held nothing after it), or inputs waiting but none that would
   be due another step after this one: stepped and answered in the caller's thread too.
@@ -241,10 +245,19 @@ class LiveSchedule:
         # the answer first: the profile's seed and its hand-off wait (nothing steps the
         # runner before this thread's next input)
         self._finish(runner, pred, recv_ns, stamp, INLINE)
+        stepped = pred is not None and pred.stepped
+        if runner.pending:
+            # a step due at this input, after its answer (runner.step_after_answer_fraction):
+            # in the gap before the next input instead of before this answer
+            self._stepping = True
+            try:
+                stepped = self._settle(runner)
+            finally:
+                self._stepping = False
         if due:
             if runner.stats.resets != resets:
                 self._reset_warning(runner.stats.resets, sample.stamp_s)
-            if self._profile_wanted(runner, pred, sample):
+            if self._profile_wanted(runner, stepped, sample):
                 # captured now (the next input may step the runner), handed over when idle
                 self._deferred_seed = (runner.profile_seed(sample), stamp)
         if not (self.defer_to_idle and self.deferred):
@@ -377,12 +390,22 @@ class LiveSchedule:
             resets = runner.stats.resets
             pred = runner.process(sample, allow_step=not behind)
             self._finish(runner, pred, recv_ns, stamp, MODEL)
+            stepped = self._settle(runner) or (pred is not None and pred.stepped)
             if runner.stats.resets != resets:
                 self._reset_warning(runner.stats.resets, sample.stamp_s)
-            if self._profile_wanted(runner, pred, sample):
+            if self._profile_wanted(runner, stepped, sample):
                 self._profile_seed = (runner.profile_seed(sample), stamp, self._gaps)
 
-    def _profile_wanted(self, runner, pred, sample):
+    def _settle(self, runner):
+        """Take the step left to follow an answer (``runner.settle``); log one that fails."""
+        failed = runner.stats.rejected["model_error"]
+        stepped = runner.settle()
+        if runner.stats.rejected["model_error"] != failed:
+            self.outputs.log("error", f"model step failed: {runner.stats.last_error}; "
+                             "state reset")
+        return stepped
+
+    def _profile_wanted(self, runner, stepped, sample):
         """
         Whether the step just taken for ``sample`` should start a look-ahead profile.
 
@@ -393,7 +416,7 @@ class LiveSchedule:
         20 rev/s every profile started was abandoned at the next step, 0 published per
         second, and the ones started cost 0.3-0.4 of a core beside 1.8 deg steps.
         """
-        if not (pred is not None and pred.stepped and runner.scale == 1.0
+        if not (stepped and runner.scale == 1.0
                 and profile_due(self._profiled, sample)):
             return False
         if runner.profile_fits(sample, *self._profile_shape):

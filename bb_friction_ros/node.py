@@ -100,8 +100,7 @@ class FrictionNode(Node):
         self._pub_profile = self.create_publisher(FeedforwardProfile, interface.PROFILE, depth)
         self._pub_diag = self.create_publisher(DiagnosticArray, interface.DIAGNOSTICS, depth)
         self.live = LiveSchedule(
-            build_runner(_model_file(p), p.model_rate_hz, p.model_step_deg,
-                         p.max_model_step_deg),
+            build_runner(_model_file(p), *p.schedule()),
             InputAssembler(p.nut_joint, p.max_axial_load_n), p,
             Outputs(answer=self._answer, groups=self._publish_groups,
                     profile=self._publish_profile,    # log: level "info", "warning", ...
@@ -225,8 +224,7 @@ class FrictionNode(Node):
             new = node_parameters(updates, node_parameters(current))
             runner = None
             if MODEL_PARAMETERS & updates.keys():
-                runner = build_runner(_model_file(new), new.model_rate_hz,
-                                      new.model_step_deg, new.max_model_step_deg)
+                runner = build_runner(_model_file(new), *new.schedule())
         except ConfigError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
         except Exception as exc:     # a model that cannot be built: refused, node lives

@@ -32,6 +32,13 @@ class NodeParameters:
     max_model_step_deg: float = field(14.4, "deg", "coarsest step the live model takes when "
                                       "it cannot keep up (counted in diagnostics)", lo=0.05,
                                       hi=360.0)
+    step_after_answer_fraction: float = field(0.5, "1", "a step due at an input at most "
+                                              "this fraction of a model step of nut rotation "
+                                              "past the input before is taken after that "
+                                              "input is answered, from the state before the "
+                                              "step (lower latency; 0: every due step before "
+                                              "its answer; docs/model_schedule.md)",
+                                              lo=0.0, hi=1.0)
     queue_size: int = field(256, "1", "inputs waiting for the model thread, and the depth "
                             "of the input subscriptions; when full the oldest is dropped "
                             "(newest wins)", lo=1, hi=100000)
@@ -74,6 +81,22 @@ class NodeParameters:
             check_type(f"{NODE_NAME}.{f.name}", f, getattr(self, f.name))
         validate(self, NODE_NAME)
 
+    def schedule(self, answer_first=True):
+        """
+        Return the runner's schedule settings, in ``runner.build_runner``'s order.
+
+        (model_rate_hz, model_step_deg, max_model_step_deg, step_after_answer_fraction): one
+        list for the node, replay and the discrepancy workflow.  ``answer_first`` False sets
+        the last to 0 (every due step before its answer): the discrepancy workflow's trials
+        of physical parameters, which compare a parameter's effect between runs at the
+        same angles and at a 4x coarser step, where the rule's lag (up to that fraction of
+        the coarse step in nut angle) would blur the comparison.  The lag is the live
+        node's latency trade, not physics to fit.
+        """
+        return (float(self.model_rate_hz), float(self.model_step_deg),
+                float(self.max_model_step_deg),
+                float(self.step_after_answer_fraction) if answer_first else 0.0)
+
     def check(self, path):
         """Refuse an empty ``nut_joint``: it matches no joint, so every input is rejected."""
         if not self.nut_joint.strip():
@@ -89,9 +112,9 @@ RUNTIME = frozenset({"nut_joint", "model_rate_hz", "groups_rate_hz", "max_axial_
                      "config_file", "max_answer_age_s", "max_backlog_s",
                      "profile_horizon_periods", "profile_points", "model_step_deg",
                      "max_model_step_deg", "input_timeout_s", "model_rate_tolerance",
-                     "gil_switch_interval_s"})
+                     "gil_switch_interval_s", "step_after_answer_fraction"})
 MODEL_PARAMETERS = frozenset({"config_file", "model_rate_hz", "model_step_deg",
-                              "max_model_step_deg"})
+                              "max_model_step_deg", "step_after_answer_fraction"})
 FIELDS = {f.name: f for f in dataclasses.fields(NodeParameters)}
 # declared by rclpy itself for every node: in a params file, neither ours nor unknown
 ROS_BUILTIN_PARAMETERS = frozenset({"use_sim_time", "start_type_description_service"})

@@ -83,6 +83,7 @@ def run_events(events, runner, assembler, progress=False):
         pred = feed_event(ev, runner, assembler)
         if pred is not None:
             preds.append(pred)
+    runner.settle()     # a step left to follow the last answer: counted as the node counts it
     return preds
 
 
@@ -330,8 +331,7 @@ def replay(bag, out, config=None, settings=NodeParameters(), topics=Topics(), pr
     _remove_earlier_outputs(bag, out)
     with BagInput(bag, topics) as src:
         runner = build_runner(config or settings.config_file
-                              or bundled_config("ball_screw.yaml"), settings.model_rate_hz,
-                              settings.model_step_deg, settings.max_model_step_deg)
+                              or bundled_config("ball_screw.yaml"), *settings.schedule())
         assembler = InputAssembler(settings.nut_joint, settings.max_axial_load_n)
         # metadata's count decides only whether the column exists: an empty measured topic
         # would hold every row back waiting for a measurement
@@ -552,6 +552,7 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress,
         if aligner is not None:
             emit(aligner.finish())
         fh.write("".join(lines))
+        runner.settle()     # a step left to follow the last answer, as the node takes it
     wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
     if bar is not None:
         bar.close()

@@ -19,6 +19,17 @@ advance (a driver leaving ``header.stamp`` at 0) leave the floor no time: they a
 nut-state sample gets a prediction from the latest model state (zero-order hold; its age in
 input time is reported), so the output keeps the input rate while the model steps at its own.
 
+Answer first, then step (``step_after_answer_fraction``, default 0.5): when the inputs are
+dense against the step (at 1 rev/s a 1 kHz input is 0.36 deg, a fifth of the 1.8 deg step), a
+step due at a sample at most that fraction of a step past the one before is taken *after*
+the sample is answered, from the state before it (``settle``; ``process`` takes a pending
+step first).  The answer is then at most that fraction of a step older in nut angle, and the
+live node answers every such input without a step in the way: the step runs in the gap
+before the next input (docs/node_latency.md).  Reversals, starts, stops and load changes on
+stalled stamps step first as before, and so do sparse inputs (5 rev/s and faster at 1 kHz,
+where one input is a step or more: answering from the state before would lag a whole step,
+docs/model_schedule.md).  Replay follows the same rule, so live = replay stays exact.
+
 Falling behind (the live node only: replay always steps): a sample that cannot step
 (``process(sample, allow_step=False)``) is answered from the current state, and the schedule
 turns coarser, the step and the floor doubled (up to ``max_model_step_deg``), rather than
@@ -220,14 +231,16 @@ class ModelRunner:
     """
 
     def __init__(self, screw, model_rate_hz, terms=None, model_step_deg=None,
-                 max_model_step_deg=None):
+                 max_model_step_deg=None, step_after_answer_fraction=None):
         """
         Wrap ``screw``, stepped by nut rotation with a time floor (module docstring).
 
         It steps every ``model_step_deg`` of nut rotation, at every change of direction, and
         at least once per 1/model_rate_hz of input time.  ``model_step_deg`` None: the node's
         default; ``max_model_step_deg`` (None: the node's default) bounds the coarser steps
-        taken when the live model falls behind.
+        taken when the live model falls behind.  ``step_after_answer_fraction`` (None: the
+        node's default; 0: never) lets a due step follow its sample's answer when that sample
+        is at most this fraction of a step past the one before (module docstring).
         ``terms`` (an empirical_terms.TermSet, optional) adds fitted empirical torque, evaluated
         at every sample's own inputs; its time is the stamp since the run's first sample.
         """
@@ -237,6 +250,11 @@ class ModelRunner:
             model_step_deg = defaults.model_step_deg
         if max_model_step_deg is None:
             max_model_step_deg = max(defaults.max_model_step_deg, model_step_deg)
+        if step_after_answer_fraction is None:
+            step_after_answer_fraction = defaults.step_after_answer_fraction
+        if not 0.0 <= step_after_answer_fraction <= 1.0:
+            raise ValueError(f"step_after_answer_fraction must be in [0, 1], got "
+                             f"{step_after_answer_fraction}")
         if not model_rate_hz > 0:
             raise ValueError(f"model_rate_hz must be > 0, got {model_rate_hz}")
         if not 0.0 < model_step_deg <= max_model_step_deg:
@@ -269,6 +287,9 @@ class ModelRunner:
         self._held = None           # (torque, direction) of the last converged step
         self._late_run = 0          # consecutive late samples (see _is_late)
         self._last_extra = 0.0      # empirical torque of the last sample on time
+        self._last_angle = None     # nut angle of the last sample on time [rad]
+        self._pending = None        # (sample, empirical torque): a step after its answer
+        self._after_answer_rad = self.step_rad * step_after_answer_fraction
 
     def reset(self):
         """Forget the model state; the next sample starts a new run."""
@@ -281,6 +302,8 @@ class ModelRunner:
         self._held = None
         self._late_run = 0
         self._last_extra = 0.0
+        self._last_angle = None
+        self._pending = None
 
     def continue_from(self, old):
         """
@@ -348,6 +371,8 @@ class ModelRunner:
 
         Cheap; the live node answers samples with no step due at once, in its input thread.
         """
+        if self._pending is not None:
+            self.settle()
         if self._state is None or self._last_stamp is None:
             return True
         if sample.stamp_s < self._last_stamp:
@@ -411,7 +436,55 @@ class ModelRunner:
             self.reset()
             return None
 
+    @property
+    def pending(self):
+        """Whether a step due at the last sample waits to be taken after its answer."""
+        return self._pending is not None
+
+    def settle(self):
+        """
+        Take the step due at the last sample, answered before it (module docstring).
+
+        The next ``process`` (or ``step_due``) takes it first anyway, so when it runs does
+        not change any answer: the live node calls this right after publishing, in the gap
+        before the next input; replay leaves it to the next sample.  Returns True if it
+        stepped.  A step that raises is counted (``model_error``, the sample was answered)
+        and resets the state, as in ``process``.
+        """
+        if self._pending is None:
+            return False
+        sample, extra = self._pending
+        self._pending = None
+        try:
+            self._substeps_to(sample)
+            self._take_step(sample, sample.stamp_s - self._model_stamp)
+        except Exception as exc:   # any failure of the physics: counted, never fatal
+            self.reject("model_error")
+            self.stats.last_error = repr(exc)
+            self.reset()
+            return False
+        self._update_held(self._state.torque_total_nm + extra, sample.nut_velocity_rad_s)
+        return True
+
+    def _after_answer(self, sample):
+        """
+        Whether the step due at ``sample`` may follow its answer (``step_after_answer_fraction``).
+
+        Only a step of the angle schedule or the time floor with the nut turning on in the
+        state's direction (a reversal, a start or a stop steps first: the held torque would
+        have the old sign) and stamps advancing (a load change on stalled stamps steps at
+        once), and only when the sample is at most that fraction of a step past the one before
+        it: the answer then comes from a state that much older in nut angle at most.
+        """
+        return (self._after_answer_rad > 0.0 and self._last_angle is not None
+                and sample.stamp_s != self._last_stamp
+                and _sign(sample.nut_velocity_rad_s) == self._model_direction != 0.0
+                and abs(sample.nut_angle_rad - self._last_angle)
+                <= self._after_answer_rad * self.scale)
+
     def _process(self, sample, allow_step):
+        if self._pending is not None:
+            self.settle()
         if self._state is not None and self._last_stamp is not None \
                 and sample.stamp_s < self._last_stamp and self._is_late(sample):
             return self._answer_late(sample)
@@ -435,7 +508,9 @@ class ModelRunner:
         elif self._due(sample):
             # A reversal (or a start/stop) is due at once: Coulomb friction flips there, and
             # a held torque of the old sign is the worst feed-forward a controller can get.
-            if allow_step:
+            if allow_step and self._after_answer(sample):
+                self._pending = sample
+            elif allow_step:
                 self._substeps_to(sample)
                 self._take_step(sample, sample.stamp_s - self._model_stamp)
                 stepped = True
@@ -450,6 +525,9 @@ class ModelRunner:
                 sample.stamp_s, sample.stamp_s - self._first_stamp, sample.nut_angle_rad,
                 sample.nut_velocity_rad_s, sample.axial_load_n)
         self._last_extra = extra
+        self._last_angle = sample.nut_angle_rad
+        if self._pending is sample:
+            self._pending = (sample, extra)
         if stepped:
             self._update_held(st.torque_total_nm + extra, sample.nut_velocity_rad_s)
         return self._answer(sample, extra, stepped, sample.stamp_s - self._model_stamp)
@@ -793,19 +871,20 @@ class InputAssembler:
         return InputSample(stamp_s, angle, velocity, self.load_n)
 
 
-def build_runner(config_path, model_rate_hz, model_step_deg=None, max_model_step_deg=None):
+def build_runner(config_path, model_rate_hz, model_step_deg=None, max_model_step_deg=None,
+                 step_after_answer_fraction=None):
     """
     Build a ModelRunner around the whole-screw model of a model file.
 
     Its ``empirical_terms`` (``augmented.yaml`` of the discrepancy workflow) add their fitted
     torque to every prediction.  ``model_step_deg``/``max_model_step_deg`` None: the node's
-    defaults (``node_parameters.NodeParameters``).
+    defaults (``node_parameters.NodeParameters``), and so is ``step_after_answer_fraction``.
     """
     cfg, terms = load_model_file(config_path)
     # physics: none (a discrepancy --baseline zero model): the terms are the whole torque
     screw = NoPhysics() if physics_of(config_path) == "none" else WholeScrew(cfg)
     runner = ModelRunner(screw, model_rate_hz, terms if len(terms) else None,
-                         model_step_deg, max_model_step_deg)
+                         model_step_deg, max_model_step_deg, step_after_answer_fraction)
     runner.warm_up(cfg.operation.axial_load_n, cfg.operation.nut_velocity_rad_s)
     return runner
 

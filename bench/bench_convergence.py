@@ -76,9 +76,12 @@ def run(runner, samples):
     return preds, wall / max(n_steps, 1), n_steps
 
 
-def make_runner(cfg, terms, rate_hz, step_deg):
+def make_runner(cfg, terms, rate_hz, step_deg, ref=False):
+    # The reference answers every sample from its own step (its inputs are a step apart or
+    # less, so the schedule's answer-first rule would make it lag a step).
     r = ModelRunner(WholeScrew(cfg), rate_hz, terms if len(terms) else None,
-                    model_step_deg=step_deg, max_model_step_deg=max(step_deg, 36.0))
+                    model_step_deg=step_deg, max_model_step_deg=max(step_deg, 36.0),
+                    step_after_answer_fraction=0.0 if ref else None)
     r.warm_up(1500.0, 1.0)
     return r
 
@@ -115,7 +118,7 @@ def main():
     rows = []
     for rev_s in args.speeds:
         samples, ref_samples, idx = stream(rev_s, args.revs, args.ref_deg, args.load)
-        ref_runner = make_runner(cfg, terms, default.model_rate_hz, args.ref_deg)
+        ref_runner = make_runner(cfg, terms, default.model_rate_hz, args.ref_deg, True)
         ref_preds, ref_step_s, _ = run(ref_runner, ref_samples)
         keep = np.array([s.nut_angle_rad >= 2 * math.pi * args.settle_rev for s in samples])
         ref_total = np.array([ref_preds[i].torque_total_nm for i in idx])[keep]
@@ -140,7 +143,7 @@ def main():
               + ("" if row["ref_converged"] else "  (reference had non-converged steps)"),
               flush=True)
         if rev_s == args.check_ref_at:
-            r2 = make_runner(cfg, terms, default.model_rate_hz, 2 * args.ref_deg)
+            r2 = make_runner(cfg, terms, default.model_rate_hz, 2 * args.ref_deg, True)
             preds2, _, _ = run(r2, ref_samples)
             est2 = np.array([preds2[i].torque_total_nm for i in idx])[keep]
             agree = float(np.sqrt(np.mean((est2 - ref_total) ** 2))) / variation

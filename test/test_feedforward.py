@@ -17,7 +17,10 @@ W_LOAD_N = 1500.0
 
 @pytest.fixture(scope="module")
 def runner():
-    return build_runner(bundled_config("ball_screw.yaml"), 100.0)
+    # every due step before its answer, so a stepped prediction is the step's own state (the
+    # answer-first rule: test_runner.py, test_node_servo.py)
+    return build_runner(bundled_config("ball_screw.yaml"), 100.0,
+                        step_after_answer_fraction=0.0)
 
 
 def _ramp(omega, n, rate_hz=1000.0, t0=50.0, angle0=0.0):
@@ -282,7 +285,7 @@ def test_nonconverged_steps_never_reach_the_feedforward():
     # a step every 10 ms (the time floor; model_step_deg out of the way): the policy is tested
     runner = ModelRunner(ScriptedScrew([(0.21, True), (-58.0, False), (8.0, False),
                                         (-0.2, False), (0.0, True), (-0.22, True)]), 100.0,
-                         model_step_deg=90.0)
+                         model_step_deg=90.0, step_after_answer_fraction=0.0)
     w = 6.0
     preds = [runner.process(InputSample(t, w * t, w, 20000.0))
              for t in (0.0, 0.01, 0.015, 0.02)]

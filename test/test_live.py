@@ -122,27 +122,25 @@ def test_live_schedule_equals_replay(more_waiting, young):
     values = live.values()[0]
     assert values["skipped_steps"] == values["dropped_inputs"] == values["shed_inputs"] == 0
     assert values["profiles"] == len(rec.profiles) > 0
-    stepped = [a for a in rec.answers if a[0].stepped]
-    assert 0 < len(stepped) < len(rec.answers)
-    if young or not more_waiting:   # everything in the caller's thread
-        assert {a[3] for a in rec.answers} == {0}
-        assert rec.threads == {threading.get_ident()}
-        assert values["answered_inline"] == len(rec.answers)
-    elif type(more_waiting) is int:   # handed off: the steps the newest would follow
-        runner = build_runner(bundled_config("ball_screw.yaml"), p.model_rate_hz)
-        asm = InputAssembler(p.nut_joint, p.max_axial_load_n)
-        behind = set()
-        states = [ev for ev in events if ev.kind == "nut_state"]
-        for ev in events:
-            if ev.kind == "axial_load":
-                asm.on_axial_load(ev.value)
-                continue
-            try:
-                a = asm.on_nut_state(ev.stamp_s, ev.names, ev.positions, ev.velocities)
-            except InputError:
-                continue
-            i = states.index(ev)
-            if runner.step_due(a) and i + more_waiting < len(states):
+    # the inputs a step was due at (stepped before their answer, or after it: the runner's
+    # step_after_answer_fraction), and those after which the newest waiting one would be
+    # due again (``more_waiting`` an int: the model is behind)
+    runner = build_runner(bundled_config("ball_screw.yaml"), p.model_rate_hz)
+    asm = InputAssembler(p.nut_joint, p.max_axial_load_n)
+    due, behind = [], set()
+    states = [ev for ev in events if ev.kind == "nut_state"]
+    for ev in events:
+        if ev.kind == "axial_load":
+            asm.on_axial_load(ev.value)
+            continue
+        try:
+            a = asm.on_nut_state(ev.stamp_s, ev.names, ev.positions, ev.velocities)
+        except InputError:
+            continue
+        i = states.index(ev)
+        if runner.step_due(a):
+            due.append(a.stamp_s)
+            if type(more_waiting) is int and i + more_waiting < len(states):
                 b = states[i + more_waiting]
                 try:        # a refused newest input tells nothing: handed off
                     late = runner.due_between(a, asm.on_nut_state(
@@ -151,15 +149,23 @@ def test_live_schedule_equals_replay(more_waiting, young):
                     late = True
                 if late:
                     behind.add(a.stamp_s)
-            runner.process(a)
+        runner.process(a)
+    assert 0 < len(due) < len(rec.answers)
+    # at 500 Hz and 0.12 rad/s the inputs are dense: most steps follow their answer
+    assert sum(a[0].stepped for a in rec.answers) < len(due) / 2
+    if young or not more_waiting:   # everything in the caller's thread
+        assert {a[3] for a in rec.answers} == {0}
+        assert rec.threads == {threading.get_ident()}
+        assert values["answered_inline"] == len(rec.answers)
+    elif type(more_waiting) is int:   # handed off: the steps the newest would follow
         # the next input is never a step further (5 per period), the sixth nearly always
         # (not for the last steps, with fewer than six inputs after them)
-        assert len(behind) == 0 if more_waiting == 1 else len(stepped) - 6 < len(behind)
+        assert len(behind) == 0 if more_waiting == 1 else len(due) - 6 < len(behind)
         assert {a[1] for a in rec.answers if a[3] == 1} == behind
         assert values["answered_inline"] == len(rec.answers) - len(behind)
-    else:               # steps in the model thread, the rest in the caller's
-        assert {a[3] for a in stepped} == {1} and len(rec.threads) == 2
-        assert values["answered_inline"] == len(rec.answers) - len(stepped)
+    else:               # due steps in the model thread, the rest in the caller's
+        assert {a[1] for a in rec.answers if a[3] == 1} == set(due) and len(rec.threads) == 2
+        assert values["answered_inline"] == len(rec.answers) - len(due)
 
 
 def test_one_profile_per_model_period_of_motion():
@@ -509,3 +515,37 @@ def test_a_profile_steps_only_in_the_input_threads_gaps(monkeypatch):
     finally:
         live.stop()
     assert len(rec.profiles[-1][2]) == 3
+
+
+def test_a_step_due_at_a_dense_input_runs_after_its_answer_is_published():
+    """
+    1 rev/s at 1 kHz (the runner's ``step_after_answer_fraction``): the step due at every
+    fifth input is taken in the input thread after that input's answer is published, in the
+    gap before the next one, so no answer waits for a step (docs/node_latency.md).
+    """
+    from test_runner import RecordingScrew
+    published = []
+
+    class CountingScrew(RecordingScrew):
+        def step(self, nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s):
+            self.calls.append(("published", len(published), self))
+            return super().step(nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s)
+
+    screw = CountingScrew()
+    live, rec = schedule(runner=ModelRunner(screw, 100.0, model_step_deg=1.8))
+    rec.answers = published         # the recorder appends each answer to this list
+    w = 2 * 3.141592653589793
+    events = [Event("axial_load", 10.0, value=100.0)] + [
+        Event("nut_state", 10.0 + k / 1000, ("nut_joint",), (w * k / 1000,), (w,))
+        for k in range(26)]
+    try:
+        feed(live, events)
+    finally:
+        live.stop()
+    counts = [c[1] for c in screw.calls if c[0] == "published" and c[2] is screw]
+    # (the look-ahead profile steps copies of the screw, sharing its list of calls)
+    # the first input steps before its answer (no state yet); then inputs 5, 10, 15, 20
+    # and 25 (0-based) are due, each stepped once its own answer is out
+    assert counts == [0, 6, 11, 16, 21, 26]
+    assert [p.stepped for p, *_ in published] == [True] + [False] * 25
+    assert {a[3] for a in published} == {0} and rec.threads == {threading.get_ident()}

@@ -162,9 +162,18 @@ class Probe:
             raise self._spin_errors[0]
 
 
-def test_profile_published_at_every_model_step(ros_context):
-    """One FeedforwardProfile per model step, starting at that step's prediction."""
-    probe = Probe(ros_context, {"profile_points": 4, "model_step_deg": 3.6})
+@pytest.mark.parametrize("after", [0.0, 0.5])
+def test_profile_published_at_every_model_step(ros_context, after):
+    """
+    One FeedforwardProfile per model step, starting at that step's angle and torque.
+
+    ``after`` 0: every step before its answer, so the profile starts at the stepped input's
+    own prediction.  0.5 (the default ``step_after_answer_fraction``: 0.36 deg inputs, a
+    3.6 deg step): the step follows the answer, so the profile starts at that input's angle
+    with the torque the next input is answered with.
+    """
+    probe = Probe(ros_context, {"profile_points": 4, "model_step_deg": 3.6,
+                                "step_after_answer_fraction": after})
     try:
         probe.load(1500.0)
         w = 2 * math.pi
@@ -175,12 +184,14 @@ def test_profile_published_at_every_model_step(ros_context):
         probe._until(lambda: len(probe.profiles) >= 6)
         values = probe.node.diagnostics_values(advance=False)[0]
         assert values["model_steps"] == values["profiles"] == len(probe.profiles) == 6
-        stepped = {(p.header.stamp.sec, p.header.stamp.nanosec): p for p in probe.preds
-                   if p.model_age_s == 0.0}
+        preds = sorted(probe.preds, key=lambda p: (p.header.stamp.sec, p.header.stamp.nanosec))
+        at = {(p.header.stamp.sec, p.header.stamp.nanosec): i for i, p in enumerate(preds)}
+        assert sum(p.model_age_s == 0.0 for p in preds) == (6 if after == 0.0 else 1)
         for prof in probe.profiles:
-            pred = stepped[(prof.header.stamp.sec, prof.header.stamp.nanosec)]
-            assert prof.nut_angle_rad[0] == pred.nut_angle_rad
-            assert prof.torque_total_nm[0] == pred.torque_total_nm
+            i = at[(prof.header.stamp.sec, prof.header.stamp.nanosec)]
+            answered = preds[i] if after == 0.0 or i == 0 else preds[i + 1]
+            assert prof.nut_angle_rad[0] == preds[i].nut_angle_rad
+            assert prof.torque_total_nm[0] == answered.torque_total_nm
             assert len(prof.nut_angle_rad) == 4 and prof.converged
             assert all(b > a for a, b in zip(prof.nut_angle_rad, prof.nut_angle_rad[1:]))
             assert prof.nut_velocity_rad_s == w and prof.axial_load_n == 1500.0
@@ -195,7 +206,7 @@ def test_feedforward_never_carries_a_nonconverged_torque(ros_context):
     # a step every 10 ms (the time floor; model_step_deg out of the way): the policy is tested
     runner = ModelRunner(ScriptedScrew([(0.21, True), (-58.0, False), (8.0, False),
                                         (-0.3, False)] + [(0.0, True)] * 4), 100.0,
-                         model_step_deg=90.0)
+                         model_step_deg=90.0, step_after_answer_fraction=0.0)
     probe = Probe(ros_context, runner=runner)
     try:
         probe.load(20000.0)

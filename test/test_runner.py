@@ -7,6 +7,11 @@ import pytest
 from bb_friction_ros.runner import (axial_load_value, InputAssembler, InputError,
                                     InputSample, joint_state_sample, ModelRunner)
 
+# The schedule's tests below read when a step is taken from ``Prediction.stepped``: they run
+# with every due step before its answer.  The answer-first rule (the default
+# ``step_after_answer_fraction``) has its own tests at the end.
+STEP_FIRST = dict(step_after_answer_fraction=0.0)
+
 
 @pytest.mark.parametrize("names,pos,vel,reason", [
     ((), (), (), "empty"),
@@ -61,7 +66,7 @@ class RecordingScrew:
 
 def test_schedule_follows_stamps_and_resets_on_backwards_time():
     screw = RecordingScrew()
-    runner = ModelRunner(screw, model_rate_hz=100.0)
+    runner = ModelRunner(screw, model_rate_hz=100.0, **STEP_FIRST)
     preds = [runner.process(InputSample(t, t, 1.0, 100.0))
              for t in (0.0, 0.002, 0.009, 0.010, 0.015, 0.030)]
     assert [p.stepped for p in preds] == [True, False, False, True, False, True]
@@ -85,7 +90,7 @@ def test_reversal_steps_at_once():
 
 def test_model_rate_holds_at_epoch_stamps():
     """A 100 Hz model on 500 Hz input at epoch-time stamps steps every 5th sample, not 6th."""
-    runner = ModelRunner(RecordingScrew(), model_rate_hz=100.0)
+    runner = ModelRunner(RecordingScrew(), model_rate_hz=100.0, **STEP_FIRST)
     t0 = 1_795_000_000.123456789
     stepped = [runner.process(InputSample(t0 + k / 500.0, 0.0, 1.0, 100.0)).stepped
                for k in range(501)]
@@ -116,7 +121,7 @@ def test_model_error_is_counted_and_resets_in_the_shared_runner():
     events = [Event("axial_load", 0.0, value=100.0)] + [
         Event("nut_state", t, ("nut_joint",), (t,), (1.0,)) for t in (0.0, 0.01, 0.02, 0.03)]
     screw = FailingScrew(bad_angle=0.02)
-    runner = ModelRunner(screw, model_rate_hz=100.0)
+    runner = ModelRunner(screw, model_rate_hz=100.0, **STEP_FIRST)
     preds = run_events(events, runner, InputAssembler("nut_joint", 1e5))
     assert [p.stamp_s for p in preds] == [0.0, 0.01, 0.03]
     assert runner.stats.rejected == {"model_error": 1}
@@ -183,14 +188,14 @@ def _steps_at(runner, samples):
 def test_schedule_steps_by_nut_rotation_with_a_time_floor(rev_s, every):
     """Issue 20, item 1: a step every model_step_deg of nut rotation, at least every period."""
     w = 2 * math.pi * rev_s
-    runner = ModelRunner(RecordingScrew(), model_rate_hz=100.0, model_step_deg=3.6)
+    runner = ModelRunner(RecordingScrew(), model_rate_hz=100.0, model_step_deg=3.6, **STEP_FIRST)
     samples = [InputSample(5.0 + k * 1e-3, 0.3 + w * k * 1e-3, w, 100.0) for k in range(41)]
     assert _steps_at(runner, samples) == list(range(0, 41, every))
 
 
 def test_schedule_step_is_the_nut_rotation_either_way():
     """Backwards rotation steps the same; a step's reference is the angle it was taken at."""
-    runner = ModelRunner(RecordingScrew(), model_rate_hz=1.0, model_step_deg=10.0)
+    runner = ModelRunner(RecordingScrew(), model_rate_hz=1.0, model_step_deg=10.0, **STEP_FIRST)
     d = math.radians(1.0)
     angles = [-d * k for k in range(25)]
     samples = [InputSample(1e-3 * k, a, -1.0, 100.0) for k, a in enumerate(angles)]
@@ -282,7 +287,7 @@ def test_falling_behind_takes_coarser_steps_and_recovers():
     """
     from bb_friction_ros.runner import RELAX_MAX_S, RELAX_MIN_S
     runner = ModelRunner(RecordingScrew(), model_rate_hz=1.0, model_step_deg=1.0,
-                         max_model_step_deg=4.0)
+                         max_model_step_deg=4.0, **STEP_FIRST)
     d = math.radians(1.0)
     k = 0
 
@@ -512,3 +517,100 @@ def test_a_profile_is_started_only_if_it_can_end_before_the_next_step(rev_s, fit
     runner._step_time_s = 2e-4
     w = 2 * math.pi * rev_s
     assert runner.profile_fits(InputSample(0.0, 0.0, w, 1500.0), 2.0, 3) is fits
+
+
+# --- answer first, then step (step_after_answer_fraction) -----------------------------------
+
+def _turning(rev_s, n, rate_hz=1000.0, t0=10.0, load_n=100.0):
+    w = 2 * math.pi * rev_s
+    return [InputSample(t0 + k / rate_hz, w * k / rate_hz, w, load_n) for k in range(n)]
+
+
+def test_a_step_due_at_a_dense_input_follows_its_answer():
+    """
+    1 rev/s at 1 kHz (0.36 deg a sample, a fifth of the 1.8 deg step): a due step waits for
+    its sample's answer, which comes from the state before it; it is taken by ``settle`` or
+    by the next sample, whichever comes first, with the same answers either way (the node
+    settles at once, replay lazily: live = replay).
+    """
+    samples = _turning(1.0, 60)
+    lazy = ModelRunner(RecordingScrew(), 100.0, model_step_deg=1.8)
+    eager = ModelRunner(RecordingScrew(), 100.0, model_step_deg=1.8)
+    first = ModelRunner(RecordingScrew(), 100.0, model_step_deg=1.8, **STEP_FIRST)
+    got_lazy, got_eager, got_first = [], [], []
+    for s in samples:
+        due = lazy.step_due(s)
+        got_lazy.append(lazy.process(s))
+        # RecordingScrew's torque is the angle of its last step: the answer's state
+        assert lazy.pending == (due and len(got_lazy) > 1)
+        if lazy.pending:
+            assert got_lazy[-1].torque_total_nm < s.nut_angle_rad and not got_lazy[-1].stepped
+            assert lazy.screw.calls[-1][1] < s.nut_angle_rad      # not stepped yet
+        got_eager.append(eager.process(s))
+        eager.settle()
+        got_first.append(first.process(s))
+    assert got_lazy == got_eager
+    lazy.settle()
+    assert lazy.screw.calls == eager.screw.calls == first.screw.calls    # the same steps
+    assert lazy.stats.model_steps == eager.stats.model_steps == 12
+    # the answer lags its sample by up to a step and a sample (0.2 of a step here), five
+    # samples; stepping first, by up to four
+    step = math.radians(1.8)
+    lag = [s.nut_angle_rad - p.torque_total_nm for s, p in zip(samples, got_lazy)]
+    lag_first = [s.nut_angle_rad - p.torque_total_nm for s, p in zip(samples, got_first)]
+    assert max(lag_first) == pytest.approx(0.8 * step, rel=1e-9)
+    assert max(lag) == pytest.approx(step, rel=1e-9)
+    assert sum(p.stepped for p in got_lazy) == 1 and sum(p.stepped for p in got_first) == 12
+
+
+@pytest.mark.parametrize("case", ["sparse", "reversal", "stalled_load", "fraction_0"])
+def test_sparse_inputs_reversals_and_stalled_load_changes_step_first(case):
+    """
+    Where the state before the step would be the wrong answer, the step comes first: inputs
+    more than the fraction of a step apart (5 rev/s at 1 kHz: a whole step), a reversal (the
+    old direction's torque would push along the motion), a load change on stalled stamps,
+    and any due step with ``step_after_answer_fraction`` 0.
+    """
+    runner = ModelRunner(RecordingScrew(), 100.0, model_step_deg=1.8,
+                         **(STEP_FIRST if case == "fraction_0" else {}))
+    rev_s = 5.0 if case == "sparse" else 1.0
+    samples = _turning(rev_s, 12)
+    if case == "reversal":
+        last = samples[-1]
+        samples.append(InputSample(last.stamp_s + 1e-3, last.nut_angle_rad,
+                                   -last.nut_velocity_rad_s, last.axial_load_n))
+    elif case == "stalled_load":
+        last = samples[-1]
+        samples.append(InputSample(last.stamp_s, last.nut_angle_rad, last.nut_velocity_rad_s,
+                                   2.0 * last.axial_load_n))
+    preds = [runner.process(s) for s in samples]
+    if case in ("sparse", "fraction_0"):
+        due = [k for k, p in enumerate(preds) if p.stepped]
+        assert len(due) == (12 if case == "sparse" else 3) and not runner.pending
+    else:
+        assert preds[-1].stepped and preds[-1].model_age_s == 0.0 and not runner.pending
+
+
+def test_a_step_after_its_answer_that_fails_is_counted_and_resets():
+    """The sample was answered: counted ``model_error`` but not as an unanswered sample."""
+    samples = _turning(1.0, 12)
+    bad = samples[5].nut_angle_rad      # the first step due after the start
+    runner = ModelRunner(FailingScrew(bad_angle=bad), 100.0, model_step_deg=1.8)
+    preds = [runner.process(s) for s in samples[:6]]
+    assert all(p is not None for p in preds) and runner.pending
+    assert runner.settle() is False and not runner.pending
+    assert runner.stats.rejected == {"model_error": 1} and runner.stats.rejected_nut_state == 0
+    assert "solver blew up" in runner.stats.last_error
+    nxt = runner.process(samples[6])        # a new run starts at the next sample
+    assert nxt.stepped and runner.screw.calls[-2] == ("reset", samples[6].nut_angle_rad)
+
+
+def test_feedforward_after_its_answer_never_carries_a_nonconverged_torque():
+    """The held-feedforward policy under the default rule: steps that did not converge."""
+    from test_feedforward import ScriptedScrew
+    runner = ModelRunner(ScriptedScrew([(0.21, True), (-58.0, False), (8.0, False),
+                                        (0.23, True)]), 100.0, model_step_deg=1.8)
+    preds = [runner.process(s) for s in _turning(1.0, 16, load_n=1500.0)]
+    assert sum(not p.converged for p in preds) == 10      # answered from the two bad steps
+    assert all(p.feedforward_nm in (0.21, 0.23) for p in preds)
+    assert [p.feedforward_held for p in preds] == [not p.converged for p in preds]

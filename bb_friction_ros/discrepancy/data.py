@@ -165,8 +165,7 @@ def predict_events(events, config_path, replay_settings, progress=False):
     Return (Packed predictions, runner stats).  The events go through ``replay.run_events``
     a chunk at a time with one runner and assembler, so the result is the same as in one call.
     """
-    runner = build_runner(config_path, replay_settings.model_rate_hz,
-                          replay_settings.model_step_deg, replay_settings.max_model_step_deg)
+    runner = build_runner(config_path, *replay_settings.schedule())
     assembler = InputAssembler(replay_settings.nut_joint, replay_settings.max_axial_load_n)
     packed = Packed()
     for chunk in _chunks(events, progress):

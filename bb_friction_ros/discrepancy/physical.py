@@ -238,15 +238,19 @@ class TrialRun:
 
 
 def runner_args(replay_settings):
-    """Return the runner's schedule settings of a NodeParameters, as the replay path uses."""
-    return (float(replay_settings.model_rate_hz), float(replay_settings.model_step_deg),
-            float(replay_settings.max_model_step_deg))
+    """
+    Return the runner's schedule settings of a NodeParameters, as the replay path uses.
+
+    But every due step before its answer (``NodeParameters.schedule``): the trials compare
+    runs at the same angles, some at a coarser step, not the node's answers.
+    """
+    return replay_settings.schedule(answer_first=False)
 
 
 def coarse_args(args, factor):
     """Return runner args ``factor`` times coarser: the model step and the time floor."""
-    rate, step_deg, max_step_deg = args
-    return (rate / factor, step_deg * factor, max(max_step_deg, step_deg * factor))
+    rate, step_deg, max_step_deg, after = args
+    return (rate / factor, step_deg * factor, max(max_step_deg, step_deg * factor), after)
 
 
 def _runner(config_path, overrides, args):
@@ -255,8 +259,8 @@ def _runner(config_path, overrides, args):
     from bb_friction_ros.model_file import load_ball_screw
     from bb_friction_ros.runner import ModelRunner
     cfg = load_ball_screw(config_path, overrides)
-    rate, step_deg, max_step_deg = args
-    runner = ModelRunner(WholeScrew(cfg), rate, None, step_deg, max_step_deg)
+    rate, step_deg, max_step_deg, after = args
+    runner = ModelRunner(WholeScrew(cfg), rate, None, step_deg, max_step_deg, after)
     # as build_runner: the same warm-up, so the runs equal the replay path's
     runner.warm_up(cfg.operation.axial_load_n, cfg.operation.nut_velocity_rad_s)
     return runner

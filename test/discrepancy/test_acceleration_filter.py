@@ -82,7 +82,7 @@ def test_feedforward_and_look_ahead_carry_the_inertia_term(tmp_path):
     inertia = make_term("inertia", {"j_kg_m2": j, "accel_cutoff_hz": 10.0, "max_gap_s": 0.1})
     write_model_file(cfg, read_model_file(bundled_config("ball_screw.yaml"))[0],
                      TermSet([inertia]))
-    runner = build_runner(cfg, 100.0)
+    runner = build_runner(cfg, 100.0, step_after_answer_fraction=0.0)   # steps first
     f = AccelerationFilter(10.0, 0.1)
     seed = None
     for k in range(40):                     # a ramp of 50 rad/s^2 from 1 rad/s, at 1 kHz
