@@ -113,6 +113,8 @@ def main():
                          "starts): on a shared machine the others' load then barely delays "
                          "them, about as on a quiet one (cold runs stay at normal priority)")
     args = ap.parse_args()
+    if args.runs < 0 or args.cold_runs < 0 or args.runs + args.cold_runs == 0:
+        ap.error("--runs and --cold-runs: at least one run, none negative")
     if args.rt_priority:        # the nodes started from here inherit it
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(args.rt_priority))
     if not args.no_bytecode:
@@ -141,22 +143,24 @@ def main():
         with tempfile.TemporaryDirectory() as cache:
             cold.append(time_to_ready({**env, "NUMBA_CACHE_DIR": cache},
                                       args.cold_timeout))
-    print(f"friction_node launch to ready, warm numba cache: median "
-          f"{statistics.median(warm):.2f} s (runs: {', '.join(f'{t:.2f}' for t in warm)})")
-    print(f"  its own line: {own[len(own) // 2]}")
-    ages, cpus = zip(*(own_figures(line) for line in own))
-    # CPU to ready is what the start-up costs; a loaded machine inflates the wall time more
-    print(f"  its own figures: median {statistics.median(ages):.2f} s after launch, "
-          f"{statistics.median(cpus):.2f} s of CPU (runs: "
-          f"{', '.join(f'{c:.2f}' for c in cpus)})")
-    print(f"bare rclpy node (bench/thin_node.py) launch to subscribed: median "
-          f"{statistics.median(thin):.2f} s; friction_node / bare "
-          f"{statistics.median(warm) / statistics.median(thin):.2f}")
+    if warm:        # --runs 0: the cold runs alone
+        print(f"friction_node launch to ready, warm numba cache: median "
+              f"{statistics.median(warm):.2f} s (runs: {', '.join(f'{t:.2f}' for t in warm)})")
+        print(f"  its own line: {own[len(own) // 2]}")
+        ages, cpus = zip(*(own_figures(line) for line in own))
+        # CPU to ready is what the start-up costs; a loaded machine inflates the wall time more
+        print(f"  its own figures: median {statistics.median(ages):.2f} s after launch, "
+              f"{statistics.median(cpus):.2f} s of CPU (runs: "
+              f"{', '.join(f'{c:.2f}' for c in cpus)})")
+        print(f"bare rclpy node (bench/thin_node.py) launch to subscribed: median "
+              f"{statistics.median(thin):.2f} s; friction_node / bare "
+              f"{statistics.median(warm) / statistics.median(thin):.2f}")
     if cold:
         walls = [wall for wall, _ in cold]
         print(f"friction_node launch to ready, cold numba cache: median "
-              f"{statistics.median(walls):.2f} s ({len(cold)} runs): the compile costs "
-              f"{statistics.median(walls) - statistics.median(warm):.2f} s")
+              f"{statistics.median(walls):.2f} s ({len(cold)} runs)" + (
+                  f": the compile costs {statistics.median(walls) - statistics.median(warm):.2f}"
+                  " s" if warm else ""))
         print(f"  its own line: {cold[len(cold) // 2][1]}")
     if args.rt_priority:
         print(f"warm runs at SCHED_FIFO priority {args.rt_priority} (--rt-priority)")
