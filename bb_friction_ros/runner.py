@@ -431,10 +431,14 @@ class ModelRunner:
         try:
             return self._process(sample, allow_step)
         except Exception as exc:   # any failure of the physics: counted, never fatal
-            self.reject("model_error", nut_state=True)
-            self.stats.last_error = repr(exc)
-            self.reset()
+            self._model_error(exc, nut_state=True)
             return None
+
+    def _model_error(self, exc, nut_state):
+        """Count a step that raised (``model_error``) and reset the state."""
+        self.reject("model_error", nut_state=nut_state)
+        self.stats.last_error = repr(exc)
+        self.reset()
 
     @property
     def pending(self):
@@ -456,14 +460,10 @@ class ModelRunner:
         sample, extra = self._pending
         self._pending = None
         try:
-            self._substeps_to(sample)
-            self._take_step(sample, sample.stamp_s - self._model_stamp)
+            self._step_to(sample, extra)
         except Exception as exc:   # any failure of the physics: counted, never fatal
-            self.reject("model_error")
-            self.stats.last_error = repr(exc)
-            self.reset()
+            self._model_error(exc, nut_state=False)     # the sample itself was answered
             return False
-        self._update_held(self._state.torque_total_nm + extra, sample.nut_velocity_rad_s)
         return True
 
     def _after_answer(self, sample):
@@ -498,7 +498,8 @@ class ModelRunner:
         self.stats.samples += 1
         if sample.stamp_s == self._last_stamp:
             self.stats.stamp_stalls += 1
-        stepped = False
+        stepped = False         # the first step of a run, taken
+        step = after = False    # a due step: before the answer, or after it (``settle``)
         if self._state is None:
             if self._first_stamp is None:   # else kept from the runner this one replaced
                 self._first_stamp = sample.stamp_s
@@ -508,17 +509,13 @@ class ModelRunner:
         elif self._due(sample):
             # A reversal (or a start/stop) is due at once: Coulomb friction flips there, and
             # a held torque of the old sign is the worst feed-forward a controller can get.
-            if allow_step and self._after_answer(sample):
-                self._pending = sample
-            elif allow_step:
-                self._substeps_to(sample)
-                self._take_step(sample, sample.stamp_s - self._model_stamp)
-                stepped = True
+            if allow_step:
+                after = self._after_answer(sample)
+                step = not after
             else:
                 self.stats.skipped_steps += 1
                 self._coarsen(sample.stamp_s)
         self._last_stamp = sample.stamp_s
-        st = self._state
         extra = 0.0
         if self._live_terms is not None:
             extra = self._live_terms.torque_nm(
@@ -526,11 +523,25 @@ class ModelRunner:
                 sample.nut_velocity_rad_s, sample.axial_load_n)
         self._last_extra = extra
         self._last_angle = sample.nut_angle_rad
-        if self._pending is sample:
+        if after:
             self._pending = (sample, extra)
-        if stepped:
-            self._update_held(st.torque_total_nm + extra, sample.nut_velocity_rad_s)
-        return self._answer(sample, extra, stepped, sample.stamp_s - self._model_stamp)
+        elif step:
+            self._step_to(sample, extra)
+        elif stepped:
+            self._update_held(self._state.torque_total_nm + extra, sample.nut_velocity_rad_s)
+        return self._answer(sample, extra, stepped or step,
+                            sample.stamp_s - self._model_stamp)
+
+    def _step_to(self, sample, extra):
+        """
+        Step the model to ``sample`` (sub-steps first), the schedule's new reference.
+
+        ``extra``: the empirical torque of the sample (its terms' one evaluation), part of the
+        feedforward held after the step.
+        """
+        self._substeps_to(sample)
+        self._take_step(sample, sample.stamp_s - self._model_stamp)
+        self._update_held(self._state.torque_total_nm + extra, sample.nut_velocity_rad_s)
 
     def _answer_late(self, sample):
         """Answer a late sample (``_is_late``) from the current state: no step, no reset."""
