@@ -246,7 +246,8 @@ class LiveSchedule:
         # runner before this thread's next input)
         self._finish(runner, pred, recv_ns, stamp, INLINE)
         stepped = pred is not None and pred.stepped
-        if runner.pending:
+        settled = runner.pending
+        if settled:
             # a step due at this input, after its answer (runner.step_after_answer_fraction):
             # in the gap before the next input instead of before this answer
             self._stepping = True
@@ -258,8 +259,10 @@ class LiveSchedule:
             if runner.stats.resets != resets:
                 self._reset_warning(runner.stats.resets, sample.stamp_s)
             if self._profile_wanted(runner, stepped, sample):
-                # captured now (the next input may step the runner), handed over when idle
-                self._deferred_seed = (runner.profile_seed(sample), stamp)
+                # captured now (the next input may step the runner), handed over when idle;
+                # after a step in this gap its first step waits for the next gap
+                self._deferred_seed = (runner.profile_seed(sample), stamp,
+                                       self._gaps + 1 if settled else self._gaps)
         if not (self.defer_to_idle and self.deferred):
             self.flush()        # nothing left to do for this input: the gap begins
 
@@ -282,7 +285,7 @@ class LiveSchedule:
         with self._lock:
             self._gaps += 1
             if seed is not None:
-                self._profile_seed = seed + (self._gaps - 1,)   # this gap is its first
+                self._profile_seed = seed
             if seed is not None or self._gated:
                 self._wake.notify()     # not at every input: a wake-up costs the GIL
 

@@ -54,7 +54,7 @@ class Clock:
 
 def schedule(params=None, runner=None, clock=None, clock_ns=time.time_ns):
     p = params or NodeParameters(max_answer_age_s=10.0)
-    runner = runner or build_runner(bundled_config("ball_screw.yaml"), p.model_rate_hz)
+    runner = runner or build_runner(bundled_config("ball_screw.yaml"), *p.schedule())
     rec = Recorder()
     live = LiveSchedule(runner, InputAssembler(p.nut_joint, p.max_axial_load_n), p,
                         rec.outputs(), clock_ns=clock_ns, monotonic=clock or time.monotonic)
@@ -476,8 +476,11 @@ def test_a_profile_steps_only_in_the_input_threads_gaps(monkeypatch):
     A look-ahead profile takes each of its steps in an idle gap of the input thread (after
     an input was answered and nothing is left to do for it), not beside it: the first in
     the gap after the step that seeded it, the next only after the next input's answer.
-    Without inputs, GAP_WAIT_S releases the step (nothing to collide with then).
+    Without inputs, GAP_WAIT_S releases the step (nothing to collide with then).  Every
+    step before its answer here (``step_after_answer_fraction`` 0); a step after it:
+    ``test_after_a_step_in_the_gap_a_profile_starts_in_the_next_gap``.
     """
+    first = NodeParameters(max_answer_age_s=10.0, step_after_answer_fraction=0.0)
     import math
     from bb_friction_ros import live as live_module
     j = ("nut_joint",)
@@ -498,7 +501,7 @@ def test_a_profile_steps_only_in_the_input_threads_gaps(monkeypatch):
         raise AssertionError("no profile was started")
 
     monkeypatch.setattr(live_module, "GAP_WAIT_S", 30.0)
-    live, rec = schedule()
+    live, rec = schedule(first)
     try:
         k, n = seed_a_profile(live, rec)
         time.sleep(0.3)         # far more than a profile's steps take
@@ -508,13 +511,53 @@ def test_a_profile_steps_only_in_the_input_threads_gaps(monkeypatch):
     finally:
         live.stop()
     monkeypatch.setattr(live_module, "GAP_WAIT_S", 0.005)
-    live, rec = schedule()
+    live, rec = schedule(first)
     try:
         k, n = seed_a_profile(live, rec)
         wait_until(lambda: len(rec.profiles) == n + 1, timeout_s=5.0)   # no input came
     finally:
         live.stop()
     assert len(rec.profiles[-1][2]) == 3
+
+
+def test_after_a_step_in_the_gap_a_profile_starts_in_the_next_gap(monkeypatch):
+    """
+    Dense inputs (1 rev/s, 0.36 deg apart): the input thread takes the due step after the
+    answer, in that input's gap, so the look-ahead profile seeded by that step waits for the
+    next gap for its first step (one step-sized piece of work per gap), and for the one
+    after for its second.
+    """
+    import math
+    from bb_friction_ros import live as live_module
+    j = ("nut_joint",)
+    w = 2 * math.pi
+
+    def state(k):
+        return Event("nut_state", 1e-3 * k, j, (w * 1e-3 * k,), (w,))
+
+    monkeypatch.setattr(live_module, "GAP_WAIT_S", 30.0)
+    live, rec = schedule()
+    try:
+        feed(live, [Event("axial_load", 0.0, value=1500.0)])
+        for k in range(300):        # 20 ms apart in wall time: every gap is long
+            steps = live.runner.stats.model_steps
+            feed(live, [state(k)], wait_idle=False)
+            # stepped in this input's gap, after its answer (profiles are due every tenth
+            # input, steps every fifth: an older profile has had five gaps to end)
+            after = live.runner.stats.model_steps > steps and not rec.answers[-1][0].stepped
+            time.sleep(0.02)
+            if after and not live.idle():       # and a profile it seeded waits
+                break
+        else:
+            raise AssertionError("no profile was started")
+        n = len(rec.profiles)
+        for extra in (1, 2):
+            time.sleep(0.3)     # far more than a step of the profile takes
+            assert len(rec.profiles) == n and not live.idle()     # waits for a gap
+            feed(live, [state(k + extra)], wait_idle=False)
+        wait_until(lambda: len(rec.profiles) == n + 1, timeout_s=5.0)
+    finally:
+        live.stop()
 
 
 def test_a_step_due_at_a_dense_input_runs_after_its_answer_is_published():
