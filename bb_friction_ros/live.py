@@ -320,8 +320,7 @@ class LiveSchedule:
     def _finish(self, runner, pred, recv_ns, stamp, thread):
         """Publish the answer to one sample unless it is too old; count either."""
         if pred is None:        # counted by the runner as model_error
-            self.outputs.log("error", f"model step failed: {runner.stats.last_error}; "
-                             "state reset")
+            self._log_model_error(runner)
             return
         age_ns = self._clock_ns() - recv_ns
         if age_ns > self._max_age_ns:
@@ -401,12 +400,13 @@ class LiveSchedule:
 
     def _settle(self, runner):
         """Take the step left to follow an answer (``runner.settle``); log one that fails."""
-        failed = runner.stats.rejected["model_error"]
         stepped = runner.settle()
-        if runner.stats.rejected["model_error"] != failed:
-            self.outputs.log("error", f"model step failed: {runner.stats.last_error}; "
-                             "state reset")
-        return stepped
+        if stepped is None:     # counted by the runner as model_error
+            self._log_model_error(runner)
+        return bool(stepped)
+
+    def _log_model_error(self, runner):
+        self.outputs.log("error", f"model step failed: {runner.stats.last_error}; state reset")
 
     def _profile_wanted(self, runner, stepped, sample):
         """

@@ -452,8 +452,9 @@ class ModelRunner:
         The next ``process`` (or ``step_due``) takes it first anyway, so when it runs does
         not change any answer: the live node calls this right after publishing, in the gap
         before the next input; replay leaves it to the next sample.  Returns True if it
-        stepped.  A step that raises is counted (``model_error``, the sample was answered)
-        and resets the state, as in ``process``.
+        stepped, False if no step was pending, None if the step raised: counted
+        (``model_error``, the sample itself was answered) and the state reset, as in
+        ``process``.
         """
         if self._pending is None:
             return False
@@ -463,7 +464,7 @@ class ModelRunner:
             self._step_to(sample, extra)
         except Exception as exc:   # any failure of the physics: counted, never fatal
             self._model_error(exc, nut_state=False)     # the sample itself was answered
-            return False
+            return None
         return True
 
     def _after_answer(self, sample):

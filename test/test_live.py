@@ -592,3 +592,24 @@ def test_a_step_due_at_a_dense_input_runs_after_its_answer_is_published():
     assert counts == [0, 6, 11, 16, 21, 26]
     assert [p.stepped for p, *_ in published] == [True] + [False] * 25
     assert {a[3] for a in published} == {0} and rec.threads == {threading.get_ident()}
+
+
+def test_a_step_after_its_answer_that_fails_is_logged_and_the_next_input_restarts():
+    """The answer went out; the failed step is counted, logged once, and the state reset."""
+    import math
+    from test_runner import FailingScrew
+    w = 2 * math.pi
+    bad = w * 5 / 1000              # the first step due after the start (1.8 deg, 1 rev/s)
+    live, rec = schedule(runner=ModelRunner(FailingScrew(bad_angle=bad), 100.0,
+                                            model_step_deg=1.8))
+    events = [Event("axial_load", 10.0, value=100.0)] + [
+        Event("nut_state", 10.0 + k / 1000, ("nut_joint",), (w * k / 1000,), (w,))
+        for k in range(8)]
+    try:
+        feed(live, events)
+    finally:
+        live.stop()
+    assert len(rec.answers) == 8        # every input answered, the one before its step too
+    assert [lvl for lvl, text in rec.logs if "model step failed" in text] == ["error"]
+    assert live.runner.stats.rejected == {"model_error": 1}
+    assert rec.answers[6][0].stepped and rec.answers[6][0].model_age_s == 0.0   # restarted

@@ -598,7 +598,7 @@ def test_a_step_after_its_answer_that_fails_is_counted_and_resets():
     runner = ModelRunner(FailingScrew(bad_angle=bad), 100.0, model_step_deg=1.8)
     preds = [runner.process(s) for s in samples[:6]]
     assert all(p is not None for p in preds) and runner.pending
-    assert runner.settle() is False and not runner.pending
+    assert runner.settle() is None and not runner.pending
     assert runner.stats.rejected == {"model_error": 1} and runner.stats.rejected_nut_state == 0
     assert "solver blew up" in runner.stats.last_error
     nxt = runner.process(samples[6])        # a new run starts at the next sample
