@@ -124,7 +124,7 @@ class NoPhysics:
     def reset(self, nut_angle_rad):
         """Nothing to forget."""
 
-    def step(self, nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s):
+    def step(self, nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s, substep=False):
         """Return a zero-torque, converged step result."""
         return self._Result()
 

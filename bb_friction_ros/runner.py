@@ -648,7 +648,7 @@ class ModelRunner:
     def _step(self, sample, dt_s, answered=True):
         t0 = time.perf_counter()
         res = self.screw.step(sample.nut_angle_rad, sample.nut_velocity_rad_s,
-                              sample.axial_load_n, dt_s)
+                              sample.axial_load_n, dt_s, substep=not answered)
         self.stats.last_step_wall_s = took = time.perf_counter() - t0
         mean = self._step_time_s
         self._step_time_s = took if mean is None else mean + STEP_TIME_WEIGHT * (took - mean)
@@ -814,7 +814,8 @@ def look_ahead_profile(seed, horizon_periods=2.0, n_points=3, should_stop=None):
             if should_stop is not None and should_stop():
                 return None
             angle = s.nut_angle_rad + d_angle * (i - 1 + j / n_sub)
-            res = screw.step(angle, w, s.axial_load_n, dt / n_sub)
+            # only each point's last sub-step is answered (published)
+            res = screw.step(angle, w, s.axial_load_n, dt / n_sub, substep=j < n_sub)
             converged = converged and bool(res.converged)
         angles.append(angle)
         torques.append(res.torque_total_nm + extra(dt * i, angle))

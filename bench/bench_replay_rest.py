@@ -39,9 +39,9 @@ if sys.argv[1]:
 from bb_friction_ros import replay as R
 from bb_friction_ros.ball_screw.whole_screw import WholeScrew
 real, recorded, k = WholeScrew.step, [], [0]
-def step(self, *args):
+def step(self, *args, **kw):
     if len(recorded) < int(sys.argv[5]):
-        recorded.append(real(self, *args))
+        recorded.append(real(self, *args, **kw))
         return recorded[-1]
     k[0] = (k[0] + 1) % len(recorded)
     return recorded[k[0]]

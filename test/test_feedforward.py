@@ -274,7 +274,7 @@ class ScriptedScrew:
     def reset(self, nut_angle_rad):
         pass
 
-    def step(self, nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s):
+    def step(self, nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s, substep=False):
         torque, ok = self.script.pop(0)
         return SimpleNamespace(torque_total_nm=torque, torque_b2g_nm=torque, torque_b2b_nm=0.0,
                                converged=ok, groups=[], azimuth_rad=[0.0])

@@ -570,7 +570,7 @@ def test_a_step_due_at_a_dense_input_runs_after_its_answer_is_published():
     published = []
 
     class CountingScrew(RecordingScrew):
-        def step(self, nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s):
+        def step(self, nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s, substep=False):
             self.calls.append(("published", len(published), self))
             return super().step(nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s)
 

@@ -26,7 +26,7 @@ class SlowScrew:
     def reset(self, nut_angle_rad):
         pass
 
-    def step(self, nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s):
+    def step(self, nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s, substep=False):
         time.sleep(self.STEP_S)
         w = nut_velocity_rad_s
         torque = 0.3 if w > 0 else (-0.3 if w < 0 else 0.0)

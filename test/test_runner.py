@@ -56,7 +56,7 @@ class RecordingScrew:
     def reset(self, nut_angle_rad):
         self.calls.append(("reset", nut_angle_rad))
 
-    def step(self, nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s):
+    def step(self, nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s, substep=False):
         self.calls.append(("step", nut_angle_rad, dt_s))
         from types import SimpleNamespace
         return SimpleNamespace(torque_total_nm=nut_angle_rad, torque_b2g_nm=nut_angle_rad,
@@ -104,7 +104,7 @@ class FailingScrew(RecordingScrew):
         super().__init__()
         self.bad_angle = bad_angle
 
-    def step(self, nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s):
+    def step(self, nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s, substep=False):
         if nut_angle_rad == self.bad_angle:
             raise FloatingPointError("solver blew up")
         return super().step(nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s)
@@ -191,6 +191,31 @@ def test_schedule_steps_by_nut_rotation_with_a_time_floor(rev_s, every):
     runner = ModelRunner(RecordingScrew(), model_rate_hz=100.0, model_step_deg=3.6, **STEP_FIRST)
     samples = [InputSample(5.0 + k * 1e-3, 0.3 + w * k * 1e-3, w, 100.0) for k in range(41)]
     assert _steps_at(runner, samples) == list(range(0, 41, every))
+
+
+class SubstepScrew(RecordingScrew):
+    """Records which steps the runner calls sub-steps (never answered)."""
+
+    def step(self, nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s, substep=False):
+        self.calls.append(("substep" if substep else "answered", nut_angle_rad))
+        return super().step(nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s)
+
+
+def test_only_the_steps_between_two_inputs_are_substeps():
+    """
+    Inputs 10.8 deg apart with a 3.6 deg step: two sub-steps, then the input's own step.
+
+    A sub-step's state is never answered, so the screw may solve it to the looser
+    ``solver.substep_tolerance``; the step an input is answered from never is one.
+    """
+    screw = SubstepScrew()
+    runner = ModelRunner(screw, model_rate_hz=100.0, model_step_deg=3.6, **STEP_FIRST)
+    d = math.radians(10.8)
+    for k in range(3):
+        runner.process(InputSample(1e-3 * k, d * k, 1.0, 100.0))
+    kinds = [c[0] for c in screw.calls if c[0] in ("substep", "answered")]
+    assert kinds == ["answered"] + ["substep", "substep", "answered"] * 2
+    assert runner.stats.substeps == 4
 
 
 def test_schedule_step_is_the_nut_rotation_either_way():

@@ -121,6 +121,10 @@ class SolverSettings:
 
     tolerance: float = field(1e-8, "1", "residual tolerance relative to the force scale",
                              lo=1e-15, hi=1e-3)
+    substep_tolerance: float = field(1e-4, "1", "residual tolerance of a sub-step: a step "
+                                     "between two inputs whose state is never answered, "
+                                     "only carried on (docs/model_schedule.md, Sub-steps); "
+                                     "at least tolerance", lo=1e-15, hi=1e-3)
     max_iterations: int = field(40, "1", "Newton iterations per active set", lo=1, hi=1000)
     max_active_set_changes: int = field(50, "1", "active-set updates per solve", lo=1,
                                         hi=10000)
@@ -156,7 +160,11 @@ class SolverSettings:
                                         "before it starts", lo=0.0, lo_open=True)
 
     def check(self, path):
-        """Cross-field checks: the friction map fits the memory limit (issue 13 #20)."""
+        """Cross-field checks: substep_tolerance >= tolerance; the friction map fits memory."""
+        if self.substep_tolerance < self.tolerance:
+            raise ConfigError(f"{path}.substep_tolerance: {self.substep_tolerance:g} is "
+                              f"below {path}.tolerance ({self.tolerance:g}); a sub-step's "
+                              "state is never answered, so it needs no tighter solve")
         from bb_friction_ros.contact.friction_maps import sphere_map_bytes
         check_memory(sphere_map_bytes(self.map_polar_nodes, self.map_azimuth_nodes),
                      self.map_memory_limit_mib,

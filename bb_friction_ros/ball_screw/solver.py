@@ -260,7 +260,7 @@ class EquilibriumSolver:
                           np.zeros(0, dtype=bool))
 
     def _solve_active_kernel(self, x, u, f_hat, centres, sign, axial_load_n, scale, rear, front,
-                             max_iterations, elastic=None):
+                             max_iterations, elastic=None, tolerance=None):
         """
         ``solve_active`` through the compiled kernel (``kernel.solve_active``).
 
@@ -281,8 +281,8 @@ class EquilibriumSolver:
                   *self.kernel_constants(), float(scale), float(axial_load_n),
                   np.ascontiguousarray(rear, dtype=np.int64),
                   np.ascontiguousarray(front, dtype=np.int64), *self.b2b.linear_terms(sign))
-        limits = (float(st.tolerance), int(max_iterations), float(st.max_step_rate),
-                  float(disp_limit))
+        tol = st.tolerance if tolerance is None else tolerance
+        limits = (float(tol), int(max_iterations), float(st.max_step_rate), float(disp_limit))
         x = np.ascontiguousarray(x, dtype=float)
         if elastic is None:
             out = kernel.solve_active(x, float(u), *common, *limits)
@@ -312,24 +312,26 @@ class EquilibriumSolver:
         return max(self.disp_limit, self._approach_units(scale))
 
     def solve_active(self, x, u, f_hat, centres, sign, axial_load_n, scale, rear, front,
-                     max_iterations=None, elastic=None):
+                     max_iterations=None, elastic=None, tolerance=None):
         """
         Newton iterations for one active set; returns (x, u, f_hat, ok, it, res, t, sp).
 
         ``elastic``: see ``_solve_active_kernel``; the elastic system always runs through
-        the kernel functions (compiled, or as plain Python without numba).
+        the kernel functions (compiled, or as plain Python without numba).  ``tolerance``:
+        the residual tolerance (default ``settings.tolerance``; a sub-step's is looser).
         """
         st = self.settings
+        tol = st.tolerance if tolerance is None else tolerance
         max_it = st.max_iterations if max_iterations is None else max_iterations
         if self.use_kernel or elastic is not None:
             return self._solve_active_kernel(x, u, f_hat, centres, sign, axial_load_n, scale, rear,
-                                             front, max_it, elastic)
+                                             front, max_it, elastic, tol)
         n = x.shape[0]
         t, res, axial, cons, gr, gf, sp = self._residual(x, u, f_hat, centres, sign, axial_load_n,
                                                          scale, rear, front, True)
         norm = max(np.abs(res).max(), abs(axial), np.abs(cons).max() if cons.size else 0.0)
         it = 0
-        while norm > st.tolerance and it < max_it:
+        while norm > tol and it < max_it:
             it += 1
             dx, du, df = self._newton_step(t, res, axial, cons, gr, gf, scale, rear, front, n)
             # Trust region: near two-point contact the spin about the loaded diagonal is
@@ -344,16 +346,16 @@ class EquilibriumSolver:
                                      True)
                 nn = max(np.abs(out[1]).max(), abs(out[2]),
                          np.abs(out[3]).max() if out[3].size else 0.0)
-                if np.isfinite(nn) and (nn < norm or nn <= st.tolerance):
+                if np.isfinite(nn) and (nn < norm or nn <= tol):
                     break
                 step *= 0.5
             x, u, f_hat = xn, un, fn
             t, res, axial, cons, gr, gf, sp = out
             norm = nn
-        return x, u, f_hat, bool(norm <= st.tolerance), it, norm, t, sp
+        return x, u, f_hat, bool(norm <= tol), it, norm, t, sp
 
     def solve(self, x, u, centres, sign, axial_load_n, scale, pair_rear, pair_front, active,
-              f_guess=None, max_total_iterations=None, elastic=None):
+              f_guess=None, max_total_iterations=None, elastic=None, tolerance=None):
         """
         Equilibrium with exact B2B complementarity over the candidate (touching) pairs.
 
@@ -363,8 +365,11 @@ class EquilibriumSolver:
         (real-time mode) caps the Newton iterations over all active sets; when it stops the
         solve, the result has ``converged = False`` and ``budget_exhausted = True``.
         ``elastic``: the elastic load path (order, comp_a, comp_b); u is then per ball.
+        ``tolerance``: residual tolerance, also of the active-set tests (default
+        ``settings.tolerance``; ``WholeScrew.step`` passes a sub-step's looser one).
         """
         st = self.settings
+        tol = st.tolerance if tolerance is None else tolerance
         active = np.asarray(active, dtype=bool).copy()
         f_all = np.zeros(pair_rear.size) if f_guess is None else np.asarray(f_guess) / scale
         total_it = 0
@@ -378,7 +383,8 @@ class EquilibriumSolver:
                 max(int(max_total_iterations) - total_it, 0)
             x, u, f_hat, ok, it, norm, t, sp = self.solve_active(
                 x, u, f0, centres, sign, axial_load_n, scale, rear, front,
-                st.max_iterations if left is None else min(st.max_iterations, left), elastic)
+                st.max_iterations if left is None else min(st.max_iterations, left), elastic,
+                tol)
             total_it += it
             f_all = np.zeros(pair_rear.size)
             f_all[idx] = f_hat
@@ -388,12 +394,12 @@ class EquilibriumSolver:
             if not pair_rear.size:
                 break
             changed = False
-            neg = idx[f_hat < -st.tolerance]
+            neg = idx[f_hat < -tol]
             if neg.size:
                 active[neg] = False
                 changed = True
             closing = (~active) & (x[pair_rear, 2] * sign > x[pair_front, 2] * sign
-                                   + st.tolerance)
+                                   + tol)
             if closing.any() and not neg.size:
                 active |= closing
                 changed = True

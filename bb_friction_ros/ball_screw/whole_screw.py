@@ -227,7 +227,7 @@ class WholeScrew:
             loads_n=np.zeros((self.n, 4)), b2b_forces_n=np.zeros(self.n),
             ball_axial_loads_n=np.zeros(self.n), converged=in_range, in_load_range=in_range)
 
-    def step(self, nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s):
+    def step(self, nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s, substep=False):
         """
         Advance the balls to the measured nut angle and solve the equilibrium there.
 
@@ -244,6 +244,10 @@ class WholeScrew:
             omega_N > 0)  [N].
         dt_s : float
             Time since the previous step  [s].
+        substep : bool
+            A step between two inputs, whose state is never answered: it only carries the
+            balls along.  Solved to ``solver.substep_tolerance`` instead of
+            ``solver.tolerance`` (docs/model_schedule.md, "Sub-steps").
 
         Returns
         -------
@@ -270,6 +274,7 @@ class WholeScrew:
         sign = 1.0 if omega_n > 0.0 else -1.0
         load_sign = 1.0 if axial_load_n >= 0.0 else -1.0
         budget = self.config.solver.realtime_max_iterations or None
+        tol = self.config.solver.substep_tolerance if substep else self.config.solver.tolerance
         warm_ok = (self._state is not None and self._state[2] == sign
                    and self._state[3] == load_sign)
         iterations = 0
@@ -280,7 +285,7 @@ class WholeScrew:
             # _warm_solve was replaced (the numpy reference, in tests): that takes the path
             # below, of which this is the compiled form.
             result, iterations = self._fused_step(d_psi, sign, load_sign, omega_n, axial_load_n,
-                                                  budget, t0)
+                                                  budget, t0, tol)
             if result is not None:
                 return result
             warm_ok = False     # failed from every guess: the path below cold-starts
@@ -307,7 +312,7 @@ class WholeScrew:
         if warm_ok:
             warm = self._warm_solve if self.model.solver.use_kernel else self._warm_solve_numpy
             sol, iterations = warm(d_psi, centres, sign, axial_load_n, scale, pair_idx, rear,
-                                   front, budget, elastic)
+                                   front, budget, elastic, tol)
             if sol.converged or sol.budget_exhausted:
                 # Real-time mode: an unfinished iterate is returned, converged = False.
                 prev = (self._state[0], self._state[1], self._forces, d_psi)
@@ -316,7 +321,7 @@ class WholeScrew:
             ratio = free.x[:, 2] * sign
             sol = self.model.solver.solve(free.x, free.u, centres, sign, axial_load_n, scale, rear,
                                           front, ratio[rear] > ratio[front],
-                                          elastic=elastic)
+                                          elastic=elastic, tolerance=tol)
             sol.converged = sol.converged and free.converged
             iterations += sol.iterations
         sol.iterations = iterations
@@ -324,7 +329,7 @@ class WholeScrew:
         return self._finish(sol, sign, omega_n, axial_load_n, theta, phi, pair_idx, rear, front,
                             t0)
 
-    def _fused_step(self, d_psi, sign, load_sign, omega_n, axial_load_n, budget, t0):
+    def _fused_step(self, d_psi, sign, load_sign, omega_n, axial_load_n, budget, t0, tol):
         """
         Take a warm step of a rigid nut without lead errors in one compiled call.
 
@@ -348,7 +353,7 @@ class WholeScrew:
             self.azimuth, self.ratio, d_psi, self.nut_angle + self.config.track.track_start_rad,
             sign, self._geo, x, float(u), xp, float(up), fp, float(dp), self._forces,
             self._active, *solver.kernel_constants(), scale, axial_load_n,
-            *solver.b2b.linear_terms(sign), st.tolerance, st.max_iterations, st.max_step_rate,
+            *solver.b2b.linear_terms(sign), tol, st.max_iterations, st.max_step_rate,
             solver.displacement_limit(scale), st.max_active_set_changes,
             budget if budget else -1, omega_n)
         ok, exhausted, iterations = out[0], out[1], int(out[2])
@@ -366,7 +371,7 @@ class WholeScrew:
                             t0), iterations
 
     def _warm_solve_numpy(self, d_psi, centres, sign, axial_load_n, scale, pair_idx, rear, front,
-                          budget, elastic):
+                          budget, elastic, tol):
         """
         Solve a warm step from the guesses in turn: the readable reference of ``_warm_solve``.
 
@@ -383,14 +388,14 @@ class WholeScrew:
             faster = gx[rear, 2] * sign > gx[front, 2] * sign
             active = (self._active[pair_idx] & (gf[pair_idx] > 0.0)) | faster
             sol = self.model.solver.solve(gx, gu, centres, sign, axial_load_n, scale, rear,
-                                          front, active, gf[pair_idx], budget, elastic)
+                                          front, active, gf[pair_idx], budget, elastic, tol)
             iterations += sol.iterations
             if sol.converged or sol.budget_exhausted:
                 break
         return sol, iterations
 
     def _warm_solve(self, d_psi, centres, sign, axial_load_n, scale, pair_idx, rear, front,
-                    budget, elastic):
+                    budget, elastic, tol):
         """
         ``_warm_solve_numpy`` in one compiled call (``kernel.warm_solve``), same arithmetic.
 
@@ -417,7 +422,7 @@ class WholeScrew:
         out, iterations, speed = kernel.warm_solve(
             x, u, xp, up, fp, float(dp), self._forces, self._active, d_psi, pair_idx, centres,
             sign, *solver.kernel_constants(), scale, axial_load_n, rear, front,
-            *solver.b2b.linear_terms(sign), *path, st.tolerance, st.max_iterations,
+            *solver.b2b.linear_terms(sign), *path, tol, st.max_iterations,
             st.max_step_rate, solver.displacement_limit(scale), st.max_active_set_changes,
             budget if budget else -1)
         x, u, f_all, active, ok, exhausted, it, norm, terms, per_contact = out

@@ -41,8 +41,8 @@ def _motion(steps):
     return out
 
 
-def _run(screw, motion):
-    return [screw.step(a, w, f, 0.01) for a, w, f in motion]
+def _run(screw, motion, substep=False):
+    return [screw.step(a, w, f, 0.01, substep) for a, w, f in motion]
 
 
 @pytest.mark.parametrize("distribution, budget", [("rigid", 0), ("elastic", 0), ("rigid", 3),
@@ -66,6 +66,19 @@ def test_compiled_warm_step_is_the_reference_bit_for_bit(model, distribution, bu
         if r.converged:
             check_step(r)
     assert max(r.n_groups for r in _run(WholeScrew(cfg, model), motion)) >= 2
+
+
+@pytest.mark.parametrize("distribution", ["rigid", "elastic"])
+def test_compiled_substep_is_the_reference(model, distribution):
+    """Sub-steps (``step(..., substep=True)``) pass the looser tolerance to either path."""
+    cfg = load_ball_screw(overrides={"load_distribution": distribution})
+    fast, ref = WholeScrew(cfg, model), WholeScrew(cfg, model)
+    ref._warm_solve = ref._warm_solve_numpy
+    motion = _motion(40)
+    for r, q in zip(_run(fast, motion, True), _run(ref, motion, True)):
+        assert r.torque_total_nm == pytest.approx(q.torque_total_nm, rel=1e-9, abs=1e-12)
+        assert (r.converged, r.iterations) == (q.converged, q.iterations)
+        assert [g[0] for g in r.groups] == [g[0] for g in q.groups]
 
 
 def test_compiled_warm_step_is_used_and_does_the_work(model, config, monkeypatch):

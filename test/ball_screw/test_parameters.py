@@ -28,6 +28,8 @@ def test_table4_values_si(config):
     ({"errors": {"theta_amp_deg": 1.0}}, "ball_screw.errors.theta_amp_deg"),
     ({"material": {"poisson_ratio": 0.7}}, "ball_screw.material.poisson_ratio"),
     ({"track": {"n_balls": 1}}, "ball_screw.track.n_balls"),
+    # a sub-step solved tighter than the answered steps: a mistake, not a choice
+    ({"solver": {"substep_tolerance": 1e-9}}, "ball_screw.solver.substep_tolerance"),
 ])
 def test_bad_config_names_key(override, key):
     with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
