@@ -14,6 +14,12 @@ issue 4 and issue 15: the numpy paths were dominated by such per-call overhead).
 Without numba the module still imports: ``jit`` returns the plain Python function and
 ``HAVE_NUMBA`` is False (the models then use their numpy paths, which call nothing here
 except the ball screw's elastic system, run as plain Python).
+
+Editing this file: numba's on-disk cache of a kernel is keyed on the kernel's own source
+file, so the kernels of ``ball_screw/kernel.py`` and ``linear_bearing/kernel.py`` keep the
+compiled copy of the old function here until their cache is cleared (``*.nbi``/``*.nbc`` in
+their ``__pycache__``; found 2026-11-26, when an edit here timed the same code twice).  A
+fresh clone (CI) has no cache.
 """
 
 import math
