@@ -44,8 +44,8 @@ def _counting(runner):
     step = screw.step
     counts = [0, 0]
 
-    def counted(*args):
-        r = step(*args)
+    def counted(*args, **kw):
+        r = step(*args, **kw)
         counts[0] += 1
         counts[1] += r.iterations
         return r

@@ -61,19 +61,22 @@ def test_default_schedule_is_within_0_2_of_the_b2b_variation(rev_s):
 @pytest.mark.parametrize("rev_s", [10.0, 20.0])
 def test_loose_substeps_move_the_answers_by_little(rev_s):
     """
-    The sub-steps between two inputs are solved to ``solver.substep_tolerance`` (1e-4), not
+    The sub-steps between two inputs are solved to ``solver.substep_tolerance`` (1e-5), not
     ``solver.tolerance`` (1e-8).  Against the same schedule with every step solved to 1e-8,
-    the answers after the first revolution move by at most 0.05 of the B2B variation, a
-    quarter of the schedule's own error bound (measured: 4.6e-6 and 5.6e-6 at 10 and
-    20 rev/s; 0.024 with the first revolution; 2.3 with a sub-step tolerance of 1e-3, which
-    this test refuses), RMS at most 0.005 (measured 1e-6 and 1.7e-6; 0.16-0.21 at 1e-3).
+    over 3 s after the first revolution: RMS at most 0.005 of the B2B variation, largest
+    0.5.  Measured 0.0000 / 0.0009 RMS and 0.000 / 0.037 largest at 10 / 20 rev/s (with
+    1e-4: 0.0027 / 0.0032 and 0.05 / 0.07; with 1e-3, which accepts the unsolved secant
+    guess and which this test refuses: 0.15 / 0.18 and 5.0 / 7.0).  A sub-step's state
+    error moves a B2B contact's closing by a sub-step now and then (the ring's touching test
+    resolves 1e-9 rad), so the largest difference depends on the run: up to 0.71 with RMS
+    0.01 in 10 s of another start (docs/model_schedule.md, "Sub-steps"), where the error
+    against the fine-step reference stays 0.15 / 0.16 either way.
     """
     cfg, _ = load_model_file(bundled_config("ball_screw.yaml"))
     strict_cfg = dataclasses.replace(cfg, solver=dataclasses.replace(
         cfg.solver, substep_tolerance=cfg.solver.tolerance))
     w = 2 * math.pi * rev_s
-    inputs = [InputSample(5.0 + k / 1000.0, w * k / 1000.0, w, LOAD_N)
-              for k in range(int(REVS * 1000.0 / rev_s))]
+    inputs = [InputSample(5.0 + k / 1000.0, w * k / 1000.0, w, LOAD_N) for k in range(3000)]
     keep = np.array([s.nut_angle_rad >= 2 * math.pi * SETTLE_REVS for s in inputs])
     step = NodeParameters().model_step_deg
     r_strict, r_loose = _runner(step, cfg=strict_cfg), _runner(step, cfg=cfg)
@@ -83,5 +86,5 @@ def test_loose_substeps_move_the_answers_by_little(rev_s):
     variation = np.std(np.array([p.torque_b2b_nm for p in a])[keep])
     diff = (np.array([p.torque_total_nm for p in b])
             - np.array([p.torque_total_nm for p in a]))[keep] / variation
-    assert np.max(np.abs(diff)) <= 0.05
     assert np.sqrt(np.mean(diff ** 2)) <= 0.005
+    assert np.max(np.abs(diff)) <= 0.5

@@ -121,7 +121,7 @@ class SolverSettings:
 
     tolerance: float = field(1e-8, "1", "residual tolerance relative to the force scale",
                              lo=1e-15, hi=1e-3)
-    substep_tolerance: float = field(1e-4, "1", "residual tolerance of a sub-step: a step "
+    substep_tolerance: float = field(1e-5, "1", "residual tolerance of a sub-step: a step "
                                      "between two inputs whose state is never answered, "
                                      "only carried on (docs/model_schedule.md, Sub-steps); "
                                      "at least tolerance", lo=1e-15, hi=1e-3)

@@ -146,7 +146,7 @@ def test_preloaded_screw_starts_at_zero_load():
 
 def test_a_substep_is_solved_to_its_own_tolerance_and_an_answered_step_fully(config, model):
     """
-    ``step(..., substep=True)`` solves to ``solver.substep_tolerance`` (1e-4), which the
+    ``step(..., substep=True)`` solves to ``solver.substep_tolerance`` (1e-5), which the
     secant guess's single Newton iteration meets; the step after it, answered, is solved to
     ``solver.tolerance`` and passes every invariant.  Steady 20 rev/s, 1.8 deg steps, every
     fourth answered (1 kHz inputs), from a cold start.  Tolerance of the answered torque:
@@ -171,5 +171,6 @@ def test_a_substep_is_solved_to_its_own_tolerance_and_an_answered_step_fully(con
             it_strict += a.iterations
             it_loose += b.iterations
             n_sub += 1
-    # one Newton iteration fewer per sub-step (measured: 1.0, 48 against 75 over 27)
-    assert it_strict - it_loose >= 0.9 * n_sub
+    # about one Newton iteration fewer per sub-step (measured 0.85 here, 52 against 75 over
+    # 27, where the first steps after the cold start need more; 1.0 with 1e-4)
+    assert it_strict - it_loose >= 0.7 * n_sub
