@@ -150,8 +150,9 @@ def test_a_substep_is_solved_to_its_own_tolerance_and_an_answered_step_fully(con
     secant guess's single Newton iteration meets; the step after it, answered, is solved to
     ``solver.tolerance`` and passes every invariant.  Steady 20 rev/s, 1.8 deg steps, every
     fourth answered (1 kHz inputs), from a cold start.  Tolerance of the answered torque:
-    0.1 % of the torque; measured at most 1.3e-4 N m of 0.2 N m (0.07 %) over the first 3 s
-    at 20 rev/s (docs/model_schedule.md, "Sub-steps"), here 40 steps from the cold start.
+    0.1 % of the torque; the runner's answers moved by at most 6.7e-5 N m of 0.2 N m
+    (0.03 %) over the first 3 s at 20 rev/s (1.3e-4 N m with a sub-step tolerance of 1e-4;
+    docs/model_schedule.md, "Sub-steps"), here 40 steps from the cold start.
     """
     assert config.solver.substep_tolerance > config.solver.tolerance
     w, d = 2 * math.pi * 20.0, math.radians(1.8)
