@@ -560,6 +560,15 @@ def test_after_a_step_in_the_gap_a_profile_starts_in_the_next_gap(monkeypatch):
         live.stop()
 
 
+def _one_rev_s_at_1_khz(n):
+    """A 100 N load, then ``n`` nut states of 1 rev/s at 1 kHz from angle 0."""
+    import math
+    w = 2 * math.pi
+    return [Event("axial_load", 10.0, value=100.0)] + [
+        Event("nut_state", 10.0 + k / 1000, ("nut_joint",), (w * k / 1000,), (w,))
+        for k in range(n)]
+
+
 def test_a_step_due_at_a_dense_input_runs_after_its_answer_is_published():
     """
     1 rev/s at 1 kHz (the runner's ``step_after_answer_fraction``): the step due at every
@@ -577,12 +586,8 @@ def test_a_step_due_at_a_dense_input_runs_after_its_answer_is_published():
     screw = CountingScrew()
     live, rec = schedule(runner=ModelRunner(screw, 100.0, model_step_deg=1.8))
     rec.answers = published         # the recorder appends each answer to this list
-    w = 2 * 3.141592653589793
-    events = [Event("axial_load", 10.0, value=100.0)] + [
-        Event("nut_state", 10.0 + k / 1000, ("nut_joint",), (w * k / 1000,), (w,))
-        for k in range(26)]
     try:
-        feed(live, events)
+        feed(live, _one_rev_s_at_1_khz(26))
     finally:
         live.stop()
     counts = [c[1] for c in screw.calls if c[0] == "published" and c[2] is screw]
@@ -598,15 +603,11 @@ def test_a_step_after_its_answer_that_fails_is_logged_and_the_next_input_restart
     """The answer went out; the failed step is counted, logged once, and the state reset."""
     import math
     from test_runner import FailingScrew
-    w = 2 * math.pi
-    bad = w * 5 / 1000              # the first step due after the start (1.8 deg, 1 rev/s)
+    bad = 2 * math.pi * 5 / 1000    # the first step due after the start (1.8 deg, 1 rev/s)
     live, rec = schedule(runner=ModelRunner(FailingScrew(bad_angle=bad), 100.0,
                                             model_step_deg=1.8))
-    events = [Event("axial_load", 10.0, value=100.0)] + [
-        Event("nut_state", 10.0 + k / 1000, ("nut_joint",), (w * k / 1000,), (w,))
-        for k in range(8)]
     try:
-        feed(live, events)
+        feed(live, _one_rev_s_at_1_khz(8))
     finally:
         live.stop()
     assert len(rec.answers) == 8        # every input answered, the one before its step too
