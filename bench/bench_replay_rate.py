@@ -15,9 +15,13 @@ the child's whole CPU time.  The split, in CPU seconds per second of recording: 
 in-process, ``ModelRunner`` on the same samples), reading (a child that only reads every
 message of the bag with rosbags), and the rest, replay's own per-message work.
 ``--bb-friction PATH`` measures another installation; ``--baseline PATH`` runs a second one
-alternately with it, so both see the same load.
+alternately with it, so both see the same load.  ``--steps-deg`` replays with other
+``--model-step-deg`` (the speed side of the step's trade; its accuracy side is
+bench_convergence.py).  Replay's work apart from the model, measured directly:
+bench_replay_rest.py.
 
 Usage: .venv/bin/python bench/bench_replay_rate.py [--speeds 1 20] [--repeats 3]
+       [--steps-deg 1.8 3.6]
        [--workdir out/bench_replay_rate] [--bb-friction PATH] [--baseline PATH]
 """
 
@@ -82,11 +86,11 @@ def child(cmd):
     return out, (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
 
 
-def model_step_s(rev_s):
+def model_step_s(rev_s, step_deg=None):
     """Mean CPU time of a model step on this recording's samples, in-process (no I/O)."""
     from bb_friction_ros.config import bundled_config
     from bb_friction_ros.runner import build_runner, InputSample
-    runner = build_runner(bundled_config("ball_screw.yaml"), 100.0)
+    runner = build_runner(bundled_config("ball_screw.yaml"), 100.0, step_deg)
     w = 2.0 * math.pi * rev_s
     samples = [InputSample(100.0 + k / STATE_HZ, w * k / STATE_HZ, w, LOAD_N)
                for k in range(int(DURATION_S * STATE_HZ))]
@@ -97,11 +101,28 @@ def model_step_s(rev_s):
     return cpu / runner.stats.model_steps, cpu, runner.stats.model_steps
 
 
-def replay_once(exe, bag, out, write_bag):
+def replay_once(exe, bag, out, write_bag, extra=()):
     """Return (summary.json, the child's CPU time) of one replay."""
-    _, cpu = child([exe, "replay", str(bag), "--out", str(out), "--no-progress"]
+    _, cpu = child([exe, "replay", str(bag), "--out", str(out), "--no-progress", *extra]
                    + ([] if write_bag else ["--no-bag"]))
     return json.loads((out / "summary.json").read_text()), cpu
+
+
+def _row(rev_s, step_deg, write_bag, name, runs, step_s, read_per_s):
+    """One line of the table from one installation's ``runs`` (summary, child CPU)."""
+    summaries = [r[0] for r in runs]
+    x = statistics.median(s["speed_vs_realtime"] for s in summaries)
+    cpus = [s.get("cpu_s") for s in summaries]
+    x_cpu = DURATION_S / statistics.median(cpus) if None not in cpus else math.nan
+    child_cpu = statistics.median(r[1] for r in runs)
+    steps_per_s = summaries[0]["model_steps"] / DURATION_S
+    model = steps_per_s * step_s
+    # the loop's CPU per second of recording, less the model's and the reading's
+    other = (1.0 / x_cpu if x_cpu == x_cpu else 1.0 / x) - model - read_per_s
+    step = "dflt" if step_deg is None else f"{step_deg:g}"
+    return (f"{rev_s:6g} {step:>5} {'bag+csv' if write_bag else 'csv':>8} {name:>5} {x:7.1f} "
+            f"{x_cpu:6.1f} {child_cpu:9.2f} {steps_per_s:8.0f} {model:9.3f} "
+            f"{read_per_s:8.3f} {other:9.3f}")
 
 
 def main():
@@ -113,6 +134,8 @@ def main():
     ap.add_argument("--bb-friction", default=str(Path(sys.executable).parent / "bb-friction"))
     ap.add_argument("--baseline", help="another bb-friction executable, run alternately with "
                     "--bb-friction in the same run (e.g. main's .venv/bin/bb-friction)")
+    ap.add_argument("--steps-deg", type=float, nargs="+", default=[None],
+                    help="replay's --model-step-deg (default: the node's default)")
     args = ap.parse_args()
     work = Path(args.workdir)
     print(f"load before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}; "
@@ -120,33 +143,27 @@ def main():
     print("x wall: summary's speed_vs_realtime (recording span / wall time of the streaming "
           "loop); x CPU: span / the loop's CPU time (cpu_s, where the installation reports "
           "it); child CPU: the whole command's CPU time, start-up and plots included")
-    print(f"{'rev/s':>6} {'output':>8} {'who':>5} {'x wall':>7} {'x CPU':>6} {'child CPU':>9} "
-          f"{'steps/s':>8} {'model s/s':>9} {'read s/s':>8} {'other s/s':>9}")
-    who = [("this", args.bb_friction)] + ([("base", args.baseline)] if args.baseline else [])
+    print(f"{'rev/s':>6} {'step°':>5} {'output':>8} {'who':>5} {'x wall':>7} {'x CPU':>6} "
+          f"{'child CPU':>9} {'steps/s':>8} {'model s/s':>9} {'read s/s':>8} {'other s/s':>9}")
+    who = [("this", args.bb_friction, ())] + (
+        [("base", args.baseline, ())] if args.baseline else [])
     for rev_s in args.speeds:
         bag = bag_of(work, rev_s)
         n, read_s = child([sys.executable, "-c", READ_ONLY, str(bag)])[0].split()
         read_per_s = float(read_s) / DURATION_S
-        step_s, _, _ = model_step_s(rev_s)
-        for write_bag in (True, False):
-            runs = {name: [] for name, _ in who}
-            for _ in range(args.repeats):
-                for name, exe in who:          # alternately: both see the same load
-                    runs[name].append(replay_once(exe, bag, work / f"replay_{rev_s:g}_{name}",
-                                                  write_bag))
-            for name, _ in who:
-                summaries = [r[0] for r in runs[name]]
-                x = statistics.median(s["speed_vs_realtime"] for s in summaries)
-                cpus = [s.get("cpu_s") for s in summaries]
-                x_cpu = DURATION_S / statistics.median(cpus) if None not in cpus else math.nan
-                child_cpu = statistics.median(r[1] for r in runs[name])
-                steps_per_s = summaries[0]["model_steps"] / DURATION_S
-                model = steps_per_s * step_s
-                # the loop's CPU per second of recording, less the model's and the reading's
-                other = (1.0 / x_cpu if x_cpu == x_cpu else 1.0 / x) - model - read_per_s
-                print(f"{rev_s:6g} {'bag+csv' if write_bag else 'csv':>8} {name:>5} {x:7.1f} "
-                      f"{x_cpu:6.1f} {child_cpu:9.2f} {steps_per_s:8.0f} {model:9.3f} "
-                      f"{read_per_s:8.3f} {other:9.3f}", flush=True)
+        for step_deg in args.steps_deg:
+            step_s, _, _ = model_step_s(rev_s, step_deg)
+            step_arg = () if step_deg is None else ("--model-step-deg", str(step_deg))
+            for write_bag in (True, False):
+                runs = {name: [] for name, _, _ in who}
+                for _ in range(args.repeats):
+                    for name, exe, extra in who:   # alternately: all see the same load
+                        runs[name].append(replay_once(
+                            exe, bag, work / f"replay_{rev_s:g}_{name}", write_bag,
+                            (*extra, *step_arg)))
+                for name, _, _ in who:
+                    print(_row(rev_s, step_deg, write_bag, name, runs[name], step_s,
+                               read_per_s), flush=True)
     print("model/read/other: CPU seconds per second of recording (1 / x CPU = their sum; "
           "other = replay's own per-message work: decoding, runner bookkeeping, alignment, "
           "CSV and bag writing); model from this installation's runner in-process")
