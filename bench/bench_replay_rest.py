@@ -7,7 +7,8 @@ bench_replay_rate.py splits replay's CPU into the model, reading and "the rest" 
 subtracting separately measured parts, so the rest carries the noise of three measurements
 (issue 20, item 5).  Here it is measured directly: each replay runs in a child process in
 which ``WholeScrew.step`` returns the results of the first ``RECORDED`` real steps over and
-over (the contact groups still change, so the output bag still writes them); the runner's
+over (the contact groups still change, so the output bag still writes them; the CPU of the
+real steps is subtracted); the runner's
 schedule, reading, decoding, alignment, CSV, plotted series and the output bag run as in a
 real replay.  Figure: the streaming loop's CPU time (summary.json ``cpu_s``), min and median of
 ``--repeats``, per second of recording.  ``--baseline DIR`` runs, alternately in the same
@@ -33,26 +34,38 @@ from bench_replay_rate import bag_of, DURATION_S  # noqa: E402  (the same record
 RECORDED = 200
 
 CHILD = """
-import json, sys
+import json, sys, time
 if sys.argv[1]:
     sys.path.insert(0, sys.argv[1])
 from bb_friction_ros import replay as R
 from bb_friction_ros.ball_screw.whole_screw import WholeScrew
-real, recorded, k = WholeScrew.step, [], [0]
+real, recorded, k, real_s = WholeScrew.step, [], [0], [0.0]
 def step(self, *args, **kw):
     if len(recorded) < int(sys.argv[5]):
+        c0 = time.process_time()
         recorded.append(real(self, *args, **kw))
+        real_s[0] += time.process_time() - c0
         return recorded[-1]
     k[0] = (k[0] + 1) % len(recorded)
     return recorded[k[0]]
 WholeScrew.step = step
+stream = R._stream
+def timed_stream(*args, **kw):
+    real_s[0] = 0.0     # the runner's warm-up steps are not in the loop's cpu_s
+    return stream(*args, **kw)
+R._stream = timed_stream
 s = R.replay(sys.argv[2], sys.argv[3], progress=False, write_bag=sys.argv[4] == "1")
-print(json.dumps({"cpu_s": s["cpu_s"], "file": R.__file__}))
+print(json.dumps({"cpu_s": s["cpu_s"], "real_s": real_s[0], "file": R.__file__}))
 """
 
 
 def rest_once(path, bag, out, write_bag):
-    """Return the loop CPU [s] of one replay with recorded steps (``path``: package dir)."""
+    """
+    Return the loop CPU [s] of one replay with recorded steps (``path``: package dir).
+
+    Less the CPU of the real steps among the first ``RECORDED`` (a sixth of the model at
+    1 rev/s, where the bag holds 1200 steps: counted as the rest until 2026-11-26).
+    """
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
     env.pop("_ROS_WHEELS_BOOTSTRAP_COMPLETE", None)
     # -P: the bench's own directory (or the cwd) must not shadow the package measured
@@ -62,7 +75,7 @@ def rest_once(path, bag, out, write_bag):
     got = json.loads(res.stdout.strip().splitlines()[-1])
     if path and not got["file"].startswith(str(Path(path).resolve())):
         raise SystemExit(f"--baseline {path}: the child imported {got['file']} instead")
-    return got["cpu_s"]
+    return got["cpu_s"] - got["real_s"]
 
 
 def main():
