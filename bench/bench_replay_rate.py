@@ -101,9 +101,10 @@ def model_step_s(rev_s, step_deg=None):
     return cpu / runner.stats.model_steps, cpu, runner.stats.model_steps
 
 
-def replay_once(exe, bag, out, write_bag, extra=()):
+def replay_once(exe, bag, out, write_bag, step_deg=None):
     """Return (summary.json, the child's CPU time) of one replay."""
-    _, cpu = child([exe, "replay", str(bag), "--out", str(out), "--no-progress", *extra]
+    step = [] if step_deg is None else ["--model-step-deg", str(step_deg)]
+    _, cpu = child([exe, "replay", str(bag), "--out", str(out), "--no-progress", *step]
                    + ([] if write_bag else ["--no-bag"]))
     return json.loads((out / "summary.json").read_text()), cpu
 
@@ -145,23 +146,20 @@ def main():
           "it); child CPU: the whole command's CPU time, start-up and plots included")
     print(f"{'rev/s':>6} {'step°':>5} {'output':>8} {'who':>5} {'x wall':>7} {'x CPU':>6} "
           f"{'child CPU':>9} {'steps/s':>8} {'model s/s':>9} {'read s/s':>8} {'other s/s':>9}")
-    who = [("this", args.bb_friction, ())] + (
-        [("base", args.baseline, ())] if args.baseline else [])
+    who = [("this", args.bb_friction)] + ([("base", args.baseline)] if args.baseline else [])
     for rev_s in args.speeds:
         bag = bag_of(work, rev_s)
         n, read_s = child([sys.executable, "-c", READ_ONLY, str(bag)])[0].split()
         read_per_s = float(read_s) / DURATION_S
         for step_deg in args.steps_deg:
             step_s, _, _ = model_step_s(rev_s, step_deg)
-            step_arg = () if step_deg is None else ("--model-step-deg", str(step_deg))
             for write_bag in (True, False):
-                runs = {name: [] for name, _, _ in who}
+                runs = {name: [] for name, _ in who}
                 for _ in range(args.repeats):
-                    for name, exe, extra in who:   # alternately: all see the same load
+                    for name, exe in who:      # alternately: both see the same load
                         runs[name].append(replay_once(
-                            exe, bag, work / f"replay_{rev_s:g}_{name}", write_bag,
-                            (*extra, *step_arg)))
-                for name, _, _ in who:
+                            exe, bag, work / f"replay_{rev_s:g}_{name}", write_bag, step_deg))
+                for name, _ in who:
                     print(_row(rev_s, step_deg, write_bag, name, runs[name], step_s,
                                read_per_s), flush=True)
     print("model/read/other: CPU seconds per second of recording (1 / x CPU = their sum; "
