@@ -439,6 +439,13 @@ LIBRARY = {k.name: k for k in (
 # Terms whose columns coincide on moving samples; only standstill samples separate them.
 AMBIGUOUS_PAIRS = (("offset", "coulomb_asymmetry"),)
 
+# The terms whose torque is friction: dissipated at the contacts, so with the physics it has the
+# sign of the nut velocity (a model whose friction does not is refused:
+# ``runner.check_friction_sign``).  The others are not friction and may take either sign: the
+# torque that accelerates the moving parts, gravity or a sensor bias, and the load-torque and
+# runout ripples of lead error and angle ripple.
+NOT_FRICTION = frozenset({"inertia", "offset", "lead_error", "angle_ripple"})
+
 
 def units_of(kind_name):
     """Return {param: unit} of a term kind."""
@@ -507,6 +514,15 @@ class TermSet:
         for t in self.terms:
             total = total + t.torque_nm(x)
         return total if total.ndim else float(total)
+
+    def friction_nm(self, t_s, nut_angle_rad, nut_velocity_rad_s, axial_load_n):
+        """Return the torque [N m] of the terms that are friction (not in ``NOT_FRICTION``)."""
+        x = Inputs.of(t_s, nut_angle_rad, nut_velocity_rad_s, axial_load_n)
+        total = np.zeros_like(x.t_s)
+        for t in self.terms:
+            if t.name not in NOT_FRICTION:
+                total = total + t.torque_nm(x)
+        return total
 
     def acceleration_filter(self):
         """Return the (cutoff_hz, max_gap_s) of the inertia terms' filter, or None."""

@@ -189,8 +189,9 @@ class _Series:
 # encapsulation header; doubles align to 8.
 _CDR_LE = b"\x00\x01\x00\x00"
 # FrictionPrediction: header (sec, nanosec, frame_id "" = length 1 + NUL, pad to 16), seven
-# float64, converged (bool, pad to 80), model_latency_s, model_age_s, n_groups.
-_PREDICTION_CDR = struct.Struct("<4siII1s3x7d?7x2dI")
+# float64, converged (bool, pad to 80), model_latency_s, model_age_s, n_groups (pad to 104),
+# torque_state_nm, state_other_direction.
+_PREDICTION_CDR = struct.Struct("<4siII1s3x7d?7x2dI4xd?")
 # Float64MultiArray: layout (no dims, data_offset 0), data of length 1 (pad to 16), the value.
 _FEEDFORWARD_CDR = struct.Struct("<4sIII4xd")
 

@@ -121,9 +121,10 @@ FILE_SIZE_LIMIT_B = 48 * 1024
 def long_bag(tmp_path_factory):
     """A 2 s reversing recording at 1 kHz with a measured torque (2000 nut_state samples)."""
     from bb_friction_ros.bags import write_events
-    from recordings import short_recording
+    from recordings import model_friction, short_recording
     bag = tmp_path_factory.mktemp("disk") / "bag"
-    write_events(bag, short_recording(state_rate_hz=1000.0, segment_s=1.0))
+    write_events(bag, short_recording(state_rate_hz=1000.0, segment_s=1.0,
+                                      measured=model_friction))
     return bag
 
 

@@ -34,7 +34,7 @@ def test_prediction_values_follow_the_field_order():
     names = [f.name for f in __import__("dataclasses").fields(Prediction)]
     assert set(interface.PREDICTION_FROM_RUNNER) <= set(names)
     values = {n: float(i + 1) for i, n in enumerate(names)}
-    values.update(converged=True, groups=((1, 2), ((3, 4), (5.0,))))
+    values.update(converged=True, state_other_direction=True, groups=((1, 2), ((3, 4), (5.0,))))
     pred = Prediction(**values)
     got = dict(zip(interface.PREDICTION_FIELDS, interface.prediction_values(pred, 0.25)))
     for name in interface.PREDICTION_FROM_RUNNER:

@@ -161,7 +161,8 @@ def test_packed_prediction_and_feedforward_are_rosbags_own_cdr():
         v = rng.normal(0.0, 10.0, 10)
         stamp = int(rng.integers(0, 2**31 - 1)) * 1_000_000_000 + int(rng.integers(0, 10**9))
         groups = tuple(((1, 2), (3.0,)) for _ in range(k % 4))
-        pred = Prediction(0.0, *v[:7], bool(k % 3), v[7], groups, 37, False, v[8])
+        pred = Prediction(0.0, *v[:7], bool(k % 3), v[7], groups, 37, False, v[8], False,
+                          v[4] + 1.0, bool(k % 2))
         sec, nanosec = divmod(stamp, 1_000_000_000)
         header = t["std_msgs/msg/Header"](
             stamp=t["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec), frame_id="")
@@ -169,7 +170,8 @@ def test_packed_prediction_and_feedforward_are_rosbags_own_cdr():
             header=header, nut_angle_rad=v[0], nut_velocity_rad_s=v[1], axial_load_n=v[2],
             torque_total_nm=v[3], torque_b2g_nm=v[4], torque_b2b_nm=v[5],
             torque_empirical_nm=v[6], converged=bool(k % 3), model_latency_s=v[9],
-            model_age_s=v[7], n_groups=len(groups))
+            model_age_s=v[7], n_groups=len(groups), torque_state_nm=v[4] + 1.0,
+            state_other_direction=bool(k % 2))
         assert prediction_cdr(pred, sec, nanosec, v[9]) == \
             bytes(store.serialize_cdr(msg, PREDICTION_TOPIC[1], little_endian=True))
         ff = t[FEEDFORWARD_TOPIC[1]](layout=t["std_msgs/msg/MultiArrayLayout"](

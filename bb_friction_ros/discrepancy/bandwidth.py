@@ -44,6 +44,7 @@ import numpy as np
 
 from bb_friction_ros.config import ConfigError
 from bb_friction_ros.empirical_terms import zero_phase_acceleration
+from bb_friction_ros.runner import run_starts
 
 
 def sample_step_s(rec):
@@ -90,18 +91,21 @@ def with_acceleration(rec, settings, spec=None):
     if rec.nut_accel_rad_s2 is not None or whole is None:
         return rec, whole
     accel = np.full(len(rec), np.nan)
-    starts = np.concatenate(([0], np.flatnonzero(np.diff(rec.t_s) < 0.0) + 1, [len(rec)]))
     cutoffs = []
-    for lo, hi in zip(starts[:-1], starts[1:]):
-        run = rec.take(slice(lo, hi))
+    for sl in run_slices(rec):
+        # late samples (a stamp a little behind, the runner's rule) in stamp order: the
+        # filter's time must not run backwards within a run
+        order = np.argsort(rec.t_s[sl], kind="stable")
+        run = rec.take(sl).take(order)
         own = acceleration_filter_of(run, settings, whole["accel_cutoff_hz"])
         if own is None:
             continue
         fc = min(whole["accel_cutoff_hz"], own["accel_cutoff_hz"])
         cutoffs.append(fc)
-        accel[lo:hi] = zero_phase_acceleration(run.t_s, run.nut_velocity_rad_s, fc,
-                                               own["max_gap_s"],
-                                               settings.accel_min_segment_samples)
+        a = np.empty(order.size)
+        a[order] = zero_phase_acceleration(run.t_s, run.nut_velocity_rad_s, fc,
+                                           own["max_gap_s"], settings.accel_min_segment_samples)
+        accel[sl] = a
     info = dict(rec.info)
     if cutoffs and (min(cutoffs) < whole["accel_cutoff_hz"]):
         info["acceleration_run_cutoff_hz"] = [min(cutoffs), max(cutoffs)]
@@ -162,8 +166,8 @@ class CutoffChoice:
 
 
 def run_slices(rec):
-    """Return the slices of the runs of a recording (a run restarts where t_s goes back)."""
-    starts = np.concatenate(([0], np.flatnonzero(np.diff(rec.t_s) < 0.0) + 1, [len(rec)]))
+    """Return the slices of the runs of a recording: where the runner resets (run_starts)."""
+    starts = np.concatenate((np.flatnonzero(run_starts(rec.t_s)[0]), [len(rec)]))
     return [slice(int(a), int(b)) for a, b in zip(starts[:-1], starts[1:])]
 
 

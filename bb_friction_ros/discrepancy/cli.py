@@ -50,7 +50,8 @@ def add_discrepancy_parser(subparsers):
                    "column motor_current_a, or the bag topic --current-topic (issue 19)")
     p.add_argument("--current-topic", default="motor_current",
                    help="bag topic of the motor current (std_msgs/Float64 or Float32, A; "
-                   "log time as stamp), read with --torque-constant-nm-per-a")
+                   "its log time, put on the motion's clock through the nut states' log "
+                   "times), read with --torque-constant-nm-per-a")
     p.add_argument("--physical", action="store_true",
                    help="also try the model's own parameters (contact-angle deviation, friction "
                         "coefficient, preload) as candidates: ~18-24 model runs over the "

@@ -131,6 +131,26 @@ class DiscrepancySettings:
     flag_min_bias_fraction: float = field(
         0.25, "1", "and when it exceeds this fraction of the noise std (relevance, not only "
         "significance)", lo=0.0)
+    # --- is the measurement plausible at all? (plausibility.py) -----------------------------
+    sign_error_z: float = field(
+        5.0, "1", "the measured torque's Coulomb part (least squares on 1 and sign(omega) over "
+        "the moving samples of both directions) below -sign_error_z standard errors is a sign "
+        "error: friction has the sign of the nut velocity (5: ~3e-7 false refusals under "
+        "white noise)", lo=1.0)
+    sign_error_fraction: float = field(
+        0.9, "1", "a recording moving in one direction only: this share of moving samples "
+        "with a measured torque against the velocity's sign is a sign error", lo=0.5, hi=1.0)
+    min_torque_constant_nm_per_a: float = field(
+        1e-4, "N m/A", "smallest torque constant accepted (--torque-constant-nm-per-a): a "
+        "6 mm micro motor has ~1.5e-3 N m/A", lo=0.0, lo_open=True)
+    max_torque_constant_nm_per_a: float = field(
+        1e4, "N m/A", "largest torque constant accepted: direct-drive torque motors reach a "
+        "few hundred N m/A", lo=0.0, lo_open=True)
+    max_measured_scale_ratio: float = field(
+        100.0, "1", "a measured torque whose RMS on moving samples is more than this factor "
+        "above or below the model's prediction is refused as a unit or torque-constant error "
+        "(the model's friction is off by tens of percent, not by orders of magnitude)",
+        lo=1.0)
     # --- the model's own parameters as candidates (issue 21; physical.py) -------------------
     physical: PhysicalSettings = dataclasses.field(default_factory=PhysicalSettings)
 

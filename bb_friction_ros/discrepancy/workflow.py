@@ -31,7 +31,7 @@ import math
 import numpy as np
 
 from bb_friction_ros.config import BBFrictionError
-from bb_friction_ros.discrepancy import physical, regimes
+from bb_friction_ros.discrepancy import physical, plausibility, regimes
 from bb_friction_ros.discrepancy.bandwidth import (acceleration_filter_of, choose_cutoff,
                                                    with_acceleration)
 from bb_friction_ros.discrepancy.data import inputs_of
@@ -40,6 +40,7 @@ from bb_friction_ros.discrepancy.selection import (ambiguities, candidates, refi
                                                    RIGID_BODY_TERMS, select, to_termset)
 from bb_friction_ros.empirical_terms import filter_lag_s, TermSet
 from bb_friction_ros.model_file import physics_of, read_model_file, write_model_file
+from bb_friction_ros.runner import FrictionSignError, load_checked_model
 
 
 # Relative difference above which the workflow's error counts as worse than the rigid-body
@@ -270,6 +271,7 @@ def analyse(rec, settings, physics=None):
         terms, trace, ctx, search = physical.select(physics, rec_in, ok, fit_mask, r, x_fit,
                                                     settings, tuple(untested), fixed,
                                                     noise.tau)
+        physical.use_replay_change(search, rec_in, ok)      # what replay will do with it
     shift = physical.shift_nm(search, n)      # the chosen physical change (issue 21), or 0
     ambiguous = ambiguities(ctx, x_fit, (r - shift)[fit_part], settings) if len(terms) else []
     ambiguous += search.identifiability if search is not None else []   # chosen, or a twin
@@ -487,9 +489,15 @@ def write_augmented(path, config_path, terms, zero_baseline=False, physical_sear
                 "# of this screw); they are the whole torque.  physics: none makes replay and\n"
                 "# the node predict with the terms alone; the ball_screw part is only the base\n"
                 "# config the runner needs.\n")
-    return write_model_file(path, base, TermSet(existing.terms + terms.terms),
-                            AUGMENTED_HEADER + note + f"# base config: {config_path}\n",
-                            physics=None if physics == "ball_screw" else physics)
+    write_model_file(path, base, TermSet(existing.terms + terms.terms),
+                     AUGMENTED_HEADER + note + f"# base config: {config_path}\n",
+                     physics=None if physics == "ball_screw" else physics)
+    try:    # never leave a model behind that the runner would refuse, or that pushes along
+        load_checked_model(path)
+    except FrictionSignError:
+        path.unlink()
+        raise
+    return path
 
 
 @dataclasses.dataclass
@@ -610,8 +618,13 @@ def run_discrepancy(input_path, out, config=None, settings=None, replay_settings
     load = dict(replay_settings=replay_settings or NodeParameters(), topics=topics or Topics(),
                 recompute=recompute, progress=progress, baseline=baseline,
                 torque_constant_nm_per_a=torque_constant_nm_per_a, current_topic=current_topic)
+    plausibility.check_torque_constant(torque_constant_nm_per_a, settings)
     rec = load_recording(input_path, config, **load)
     rec2 = load_recording(validate_path, config, **load) if validate_path else None
+    for path, r in ((input_path, rec), (validate_path, rec2)):
+        if r is not None:
+            plausibility.check_measured_sign(r, settings, path)
+            plausibility.check_measured_scale(r, settings, path)
     check_same_baseline(rec, rec2)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -620,7 +633,8 @@ def run_discrepancy(input_path, out, config=None, settings=None, replay_settings
         if settings.physical.enabled and rec.info.get("baseline") != "zero" \
                 and physics_of(config) == "ball_screw":
             physics = physical.PhysicsContext(config, physical.runner_args(
-                load["replay_settings"]), settings.physical)
+                load["replay_settings"]), settings.physical,
+                load["replay_settings"].schedule())
         a = analyse(rec, settings, physics)
         v = validate(a, rec2, settings) if rec2 is not None else None
     except InsufficientData as exc:
