@@ -275,11 +275,26 @@ def _run_demo(args):
     import os
     from pathlib import Path
     from bb_friction_ros.demo import run_demo
-    from bb_friction_ros.interface import local_domain_id
+    from bb_friction_ros.interface import local_domain_id, ros_log_dir_problem
     # DDS stays on this machine, on a domain of this run's own (set before rclpy.init).
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     os.environ.setdefault("ROS_DOMAIN_ID", str(local_domain_id()))
-    return run_demo(Path(args.out), _demo_events(), speed=args.speed)
+    problem = ros_log_dir_problem()
+    if problem:     # an unwritable HOME: rclpy.init would fail with an RCLError traceback
+        os.environ["ROS_LOG_DIR"] = str(Path(args.out).resolve() / "ros_log")
+        print(f"bb-friction demo: {problem}; logging into {os.environ['ROS_LOG_DIR']}",
+              file=sys.stderr)
+    try:
+        return run_demo(Path(args.out), _demo_events(), speed=args.speed)
+    except KeyboardInterrupt:
+        print(f"bb-friction demo: interrupted; the outputs in {args.out} are partial",
+              file=sys.stderr)
+        # DDS's own threads may still run (rclpy's context is shut down by the same SIGINT):
+        # a normal interpreter exit then aborts ("terminate called without an active
+        # exception", status 134); nothing is left to write, so leave at once.
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(130)
 
 
 def build_parser():

@@ -87,3 +87,34 @@ def local_domain_id(pid=None):
     side by side on one machine do not hear each other, nor a robot on domain 0.
     """
     return 1 + (os.getpid() if pid is None else pid) % 101
+
+
+# --- ROS's log directory -------------------------------------------------------------------
+def ros_log_dir(environ=None):
+    """Return the directory rclpy.init logs into: ROS_LOG_DIR, ROS_HOME/log or ~/.ros/log."""
+    env = os.environ if environ is None else environ
+    if env.get("ROS_LOG_DIR"):
+        return os.path.expanduser(env["ROS_LOG_DIR"])
+    home = env.get("ROS_HOME") or os.path.join(env.get("HOME") or os.path.expanduser("~"),
+                                               ".ros")
+    return os.path.join(os.path.expanduser(home), "log")
+
+
+def ros_log_dir_problem(environ=None):
+    """
+    Return why rclpy.init cannot create its log directory, or None.
+
+    rclpy.init fails with an RCLError traceback that does not say where it wanted to write
+    (an unwritable HOME, a read-only container); the fix is ROS_LOG_DIR.
+    """
+    path = ros_log_dir(environ)
+    probe = path
+    while not os.path.exists(probe):
+        parent = os.path.dirname(probe)
+        if parent == probe:
+            break
+        probe = parent
+    if os.path.isdir(probe) and os.access(probe, os.W_OK | os.X_OK):
+        return None
+    return (f"ROS logs go to {path}, and {probe} is not writable: set ROS_LOG_DIR to a "
+            "writable directory")

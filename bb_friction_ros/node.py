@@ -269,7 +269,9 @@ def main(args=None, on_spin=None):
         except KeyboardInterrupt:
             raise
         except Exception as exc:       # e.g. an unreadable --params-file
-            print(f"{NODE_NAME}: cannot start: {exc}", file=sys.stderr)
+            hint = interface.ros_log_dir_problem()
+            print(f"{NODE_NAME}: cannot start: {exc}" + (f" ({hint})" if hint else ""),
+                  file=sys.stderr)
             return 2
         try:
             node = FrictionNode()

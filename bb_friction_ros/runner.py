@@ -149,6 +149,23 @@ def _sign(x):
     return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
 
 
+def interrupted(exc):
+    """
+    Tell whether ``exc`` is a Ctrl-C that compiled code turned into another exception.
+
+    A KeyboardInterrupt raised while numba's code runs comes out as a ``SystemError`` ("returned
+    a result with an exception set") chained to it.  Counted as a model error, the run went on
+    and exited 0 with spurious resets; it must stop the run instead.
+    """
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
 class InputError(BBFrictionError):
     """An input message is rejected; ``reason`` is a short key counted in diagnostics."""
 
@@ -439,7 +456,9 @@ class ModelRunner:
             return None
 
     def _model_error(self, exc, nut_state):
-        """Count a step that raised (``model_error``) and reset the state."""
+        """Count a step that raised (``model_error``) and reset the state; Ctrl-C stops."""
+        if interrupted(exc):
+            raise KeyboardInterrupt from exc
         self.reject("model_error", nut_state=nut_state)
         self.stats.last_error = repr(exc)
         self.reset()

@@ -171,6 +171,19 @@ def run_slices(rec):
     return [slice(int(a), int(b)) for a, b in zip(starts[:-1], starts[1:])]
 
 
+def dominant_step_s(rec):
+    """Return the sample step [s] of the runs that hold most samples (weighted median)."""
+    steps, rows = [], []
+    for sl in run_slices(rec):
+        step = sample_step_s(rec.take(sl))
+        if step is not None:
+            steps.append(step)
+            rows.append(sl.stop - sl.start)
+    order = np.argsort(steps)
+    cum = np.cumsum(np.asarray(rows)[order])
+    return float(np.asarray(steps)[order][np.searchsorted(cum, 0.5 * cum[-1])])
+
+
 def cutoff_grid(step_s, settings):
     """Return the candidate cut-offs [Hz], ascending."""
     top = max_cutoff_hz(step_s, settings)
@@ -217,12 +230,19 @@ def choose_cutoff(rec, settings, usable):
     if step is None or rec.nut_accel_rad_s2 is not None:
         return None
     # a file of several recorder runs may mix rates (the RViMLab exports: 4-156 Hz): the
-    # grid reaches the fastest run's safe cut-off; each run is still capped at its own
-    step = min(s for s in (sample_step_s(rec.take(sl)) for sl in run_slices(rec))
-               if s is not None)
+    # grid reaches the safe cut-off of the rate most samples were taken at (a short fast run
+    # among slow ones set 400 Hz for a file 99 % filtered at 10 Hz); each run is still capped
+    # at its own
+    step = dominant_step_s(rec)
     rate = 1.0 / step
     top = max_cutoff_hz(step, settings)
     if settings.accel_cutoff_hz > 0:
+        if settings.accel_cutoff_hz < settings.accel_min_cutoff_hz:
+            raise ConfigError(
+                f"discrepancy.accel_cutoff_hz: {settings.accel_cutoff_hz:g} Hz is below "
+                f"accel_min_cutoff_hz = {settings.accel_min_cutoff_hz:g} Hz (the filter "
+                "would lag by more than any acceleration phase); set 0 to choose it from the "
+                "data")
         if settings.accel_cutoff_hz > top * (1 + 1e-9):
             raise ConfigError(
                 f"discrepancy.accel_cutoff_hz: {settings.accel_cutoff_hz:g} Hz is above the "

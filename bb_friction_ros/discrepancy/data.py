@@ -549,7 +549,15 @@ def load_csv(path, config_path, replay_settings=NodeParameters(), recompute=Fals
     runs = check_time_order(path, cols["t_s"])
     check_time_advances(path, cols["t_s"])
     accel = cols.get(CSV_ACCELERATION)
-    info = {"input": str(path), "format": "csv", "runs": runs,
+    header = _csv_header(path)
+    notes = []
+    if CSV_CURRENT in header and "torque_meas_nm" in header:
+        notes.append(f"{path} has both torque_meas_nm and {CSV_CURRENT}: "
+                     + (f"{CURRENT_FLAG} reads {CSV_CURRENT}; torque_meas_nm was ignored"
+                        if torque_constant_nm_per_a is not None else
+                        f"torque_meas_nm was used; {CSV_CURRENT} was ignored (it needs "
+                        f"{CURRENT_FLAG})"))
+    info = {"input": str(path), "format": "csv", "runs": runs, "notes": notes,
             "measured_torque_source": measured_from,
             "acceleration_source": f"csv column {CSV_ACCELERATION}" if accel is not None
             else "derived (zero-phase filter)"}

@@ -165,6 +165,10 @@ class PhysicalKind:
         else:
             grid = base + np.linspace(0.0, s.preload_max_um, s.preload_bracket_points + 1)
             tol = s.preload_resolution_um
+        # within the parameter's own range: a config at mu 0.7 with mu_ratio_hi 1.6 asked for
+        # a trial at 1.12, which the model refuses (a config error about a value the user
+        # did not write)
+        grid = np.unique(np.clip(grid, *self.limits()))
         return tuple(float(v) for v in grid if abs(v - base) > tol)
 
     def resolution(self, s):

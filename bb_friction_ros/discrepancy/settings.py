@@ -76,6 +76,10 @@ class DiscrepancySettings:
         "derivative is the acceleration (the inertia term); 0 chooses it from the data "
         "(blocked cross-validation, discrepancy/bandwidth.py), a positive value overrides "
         "the choice; the causal version lags by sqrt(2)/(2 pi fc), 22 ms at 10 Hz", lo=0.0)
+    accel_min_cutoff_hz: float = field(
+        0.1, "Hz", "lowest cut-off accel_cutoff_hz may set: below it the causal filter lags "
+        "by more than 2 s, longer than any acceleration phase of an axis (5e-324 Hz wrote "
+        "Infinity into summary.json)", lo=0.0, lo_open=True)
     accel_max_cutoff_fraction: float = field(
         0.2, "1", "the cut-off is at most this fraction of the sample rate (a slow recorder: "
         "the filter must stay well below Nyquist); the highest candidate of the choice",
