@@ -64,6 +64,7 @@ import numpy as np
 from bb_friction_ros.bags import LATE_SAMPLES_MAX, LATE_STAMP_TOLERANCE_S
 from bb_friction_ros.ball_screw.whole_screw import WholeScrew
 from bb_friction_ros.config import BBFrictionError, ConfigError
+from bb_friction_ros.empirical_terms import TermSet
 from bb_friction_ros.model_file import load_model_file, NoPhysics, physics_of
 
 
@@ -235,6 +236,9 @@ class RunnerStats:
     # bags.LATE_STAMP_TOLERANCE_S): answered from the current state, neither stepping nor
     # resetting it (issue 23, finding 6)
     late_samples: int = 0
+    # answers whose friction (the state and the friction terms) opposed the motion, cut to 0:
+    # a pre-rolling state right after a reversal
+    friction_cut: int = 0
     rejected: Counter = field(default_factory=Counter)   # by reason, inputs of both topics
     rejected_nut_state: int = 0     # nut-state samples never answered (in ``rejected`` too)
     last_step_wall_s: float = 0.0
@@ -308,6 +312,7 @@ class ModelRunner:
         self._held = None           # (torque, direction) of the last converged step
         self._late_run = 0          # consecutive late samples (see _is_late)
         self._last_extra = 0.0      # empirical torque of the last sample on time
+        self._last_friction = 0.0   # its friction terms' share (empirical_terms.NOT_FRICTION)
         self._last_angle = None     # nut angle of the last sample on time [rad]
         self._pending = None        # (sample, empirical torque): a step after its answer
         self._after_answer_rad = self.step_rad * step_after_answer_fraction
@@ -322,7 +327,7 @@ class ModelRunner:
             self._live_terms.reset()
         self._held = None
         self._late_run = 0
-        self._last_extra = 0.0
+        self._last_extra = self._last_friction = 0.0
         self._last_angle = None
         self._pending = None
 
@@ -540,19 +545,22 @@ class ModelRunner:
                 self.stats.skipped_steps += 1
                 self._coarsen(sample.stamp_s)
         self._last_stamp = sample.stamp_s
-        extra = 0.0
+        extra = friction = 0.0
         if self._live_terms is not None:
             extra = self._live_terms.torque_nm(
                 sample.stamp_s, sample.stamp_s - self._first_stamp, sample.nut_angle_rad,
                 sample.nut_velocity_rad_s, sample.axial_load_n)
-        self._last_extra = extra
+            friction = self._live_terms.last_friction_nm
+        self._last_extra, self._last_friction = extra, friction
         self._last_angle = sample.nut_angle_rad
         if after:
             self._pending = (sample, extra)
         elif step:
             self._step_to(sample, extra)
         elif stepped:
-            self._update_held(self._state.torque_total_nm + extra, sample.nut_velocity_rad_s)
+            self._update_held(self._with_terms(self._state.torque_total_nm, extra,
+                                               sample.nut_velocity_rad_s)[0],
+                              sample.nut_velocity_rad_s)
         return self._answer(sample, extra, stepped or step,
                             sample.stamp_s - self._model_stamp)
 
@@ -565,7 +573,24 @@ class ModelRunner:
         """
         self._substeps_to(sample)
         self._take_step(sample, sample.stamp_s - self._model_stamp)
-        self._update_held(self._state.torque_total_nm + extra, sample.nut_velocity_rad_s)
+        self._update_held(self._with_terms(self._state.torque_total_nm, extra,
+                                           sample.nut_velocity_rad_s)[0],
+                          sample.nut_velocity_rad_s)
+
+    def _with_terms(self, state_nm, extra, nut_velocity_rad_s):
+        """
+        Return (the state's torque plus the terms', True if its friction was cut to 0).
+
+        The friction (the state's torque and the terms that are friction) never opposes the
+        motion in an answer: a fitted pre-rolling state right after a reversal, or any term
+        that overturns the physics, would make every topic that carries it push the axis
+        along its motion.  Cut, it is 0 N m (the build-up of pre-rolling from 0); the terms
+        that are not friction (inertia, offset, lead error, ripple) stay.
+        """
+        friction = state_nm + self._last_friction
+        if friction * nut_velocity_rad_s < 0.0:
+            return extra - self._last_friction, True
+        return state_nm + extra, False
 
     def _answer_late(self, sample):
         """Answer a late sample (``_is_late``) from the current state: no step, no reset."""
@@ -581,12 +606,11 @@ class ModelRunner:
     def _answer(self, sample, extra, stepped, model_age_s):
         """Return the Prediction for ``sample`` from the current state, with its feedforward."""
         st = self._state
-        total = st.torque_total_nm + extra
+        total = state_total = st.torque_total_nm + extra
         b2g, b2b = st.torque_b2g_nm, st.torque_b2b_nm
         converged = self._state_converged
         direction = _sign(sample.nut_velocity_rad_s)
         other = direction != 0.0 and direction != self._model_direction
-        state_total = total
         if direction == 0.0 or other:
             # A state of the other direction (a skipped reversal step) or a standing nut:
             # the state's Coulomb torque would push the axis the wrong way, or hold it.
@@ -599,13 +623,17 @@ class ModelRunner:
                 # own torque stays in torque_state_nm for diagnostics.
                 total = b2g = b2b = extra = 0.0
                 converged = False
-        elif converged:
-            ff, held = total, False
         else:
-            ff, held = 0.0, True
-            if self._held is not None \
-                    and self._held[1] == _sign(sample.nut_velocity_rad_s) != 0.0:
-                ff = self._held[0]
+            total, cut = self._with_terms(st.torque_total_nm, extra, direction)
+            if cut:             # the parts still sum to the total
+                self.stats.friction_cut += 1
+                extra = total - b2g - b2b
+            if converged:
+                ff, held = total, False
+            else:
+                ff, held = 0.0, True
+                if self._held is not None and self._held[1] == direction:
+                    ff = self._held[0]
         return _prediction(sample.stamp_s, sample.nut_angle_rad, sample.nut_velocity_rad_s,
                            sample.axial_load_n, total, b2g, b2b, extra, converged,
                            model_age_s, self._state_groups,
@@ -1005,6 +1033,9 @@ def friction_sign_violations(screw, terms, axial_load_n, nut_velocity_rad_s):
     Returns a list of (load N, velocity rad/s, friction N m), empty when the sign holds.
     """
     speed = abs(nut_velocity_rad_s) or 1.0
+    if terms is not None:       # in steady motion a pre-rolling term is 0 (z = sign omega);
+        # after a reversal the answers cut its friction at 0 (ModelRunner._with_terms)
+        terms = TermSet(t for t in terms.terms if t.name != "pre_rolling")
     angles = [0.0]
     for t in (terms.terms if terms is not None else ()):
         if t.name == "stroke_position":

@@ -72,3 +72,13 @@ def test_replay_refuses_the_model_naming_the_file(tmp_path, capsys):
     err = capsys.readouterr().err
     assert str(bad) in err and "follows the motion" in err
     assert not (tmp_path / "out" / "prediction.csv").exists()
+
+
+def test_node_refuses_to_start_with_the_model(tmp_path, capsys):
+    from bb_friction_ros.node import main as node_main
+    bad = _model(tmp_path, [{"name": "load_dependent", "params": {"k_nm_per_n": -3.5e-4}}])
+    params = tmp_path / "params.yaml"
+    params.write_text(f"friction_node:\n  ros__parameters:\n    config_file: '{bad}'\n")
+    assert node_main(["friction_node", "--ros-args", "--params-file", str(params)]) == 2
+    err = capsys.readouterr().err
+    assert "follows the motion" in err and "Traceback" not in err
