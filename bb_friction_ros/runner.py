@@ -623,17 +623,16 @@ class ModelRunner:
                 # own torque stays in torque_state_nm for diagnostics.
                 total = b2g = b2b = extra = 0.0
                 converged = False
-        else:
+        elif converged:         # (an unconverged answer keeps its raw numbers, flagged)
             total, cut = self._with_terms(st.torque_total_nm, extra, direction)
             if cut:             # the parts still sum to the total
                 self.stats.friction_cut += 1
                 extra = total - b2g - b2b
-            if converged:
-                ff, held = total, False
-            else:
-                ff, held = 0.0, True
-                if self._held is not None and self._held[1] == direction:
-                    ff = self._held[0]
+            ff, held = total, False
+        else:
+            ff, held = 0.0, True
+            if self._held is not None and self._held[1] == direction:
+                ff = self._held[0]
         return _prediction(sample.stamp_s, sample.nut_angle_rad, sample.nut_velocity_rad_s,
                            sample.axial_load_n, total, b2g, b2b, extra, converged,
                            model_age_s, self._state_groups,

@@ -20,7 +20,7 @@ LAYERS = {
     2: {"linear_bearing", "ball_screw", "empirical_terms", "model_file"},
     3: {"runner", "live", "bags", "interface", "node_parameters", "feedforward"},
     4: {"replay", "node", "ros_inputs", "node_entry", "harness", "pytest_plugin", "testing",
-        "trajectories"},
+        "trajectories", "planned"},
     5: {"discrepancy", "sweep", "demo", "reproduce"},
     6: {"cli"},
 }

@@ -171,17 +171,21 @@ def run_slices(rec):
     return [slice(int(a), int(b)) for a, b in zip(starts[:-1], starts[1:])]
 
 
-def dominant_step_s(rec):
-    """Return the sample step [s] of the runs that hold most samples (weighted median)."""
+def grid_step_s(rec, min_share):
+    """
+    Return the sample step [s] whose safe cut-off tops the grid: the fastest rate at which at
+    least ``min_share`` of the samples were taken (that rate or faster).
+    """
     steps, rows = [], []
     for sl in run_slices(rec):
         step = sample_step_s(rec.take(sl))
         if step is not None:
             steps.append(step)
             rows.append(sl.stop - sl.start)
-    order = np.argsort(steps)
+    order = np.argsort(steps)               # fastest first
     cum = np.cumsum(np.asarray(rows)[order])
-    return float(np.asarray(steps)[order][np.searchsorted(cum, 0.5 * cum[-1])])
+    k = int(np.searchsorted(cum, min_share * cum[-1] * (1.0 - 1e-12)))
+    return float(np.asarray(steps)[order][min(k, len(steps) - 1)])
 
 
 def cutoff_grid(step_s, settings):
@@ -230,10 +234,10 @@ def choose_cutoff(rec, settings, usable):
     if step is None or rec.nut_accel_rad_s2 is not None:
         return None
     # a file of several recorder runs may mix rates (the RViMLab exports: 4-156 Hz): the
-    # grid reaches the safe cut-off of the rate most samples were taken at (a short fast run
-    # among slow ones set 400 Hz for a file 99 % filtered at 10 Hz); each run is still capped
-    # at its own
-    step = dominant_step_s(rec)
+    # grid reaches the safe cut-off of the fastest rate that holds accel_grid_min_share of
+    # the samples (a short fast run among slow ones set 400 Hz for a file 99 % filtered at
+    # 10 Hz); each run is still capped at its own
+    step = grid_step_s(rec, settings.accel_grid_min_share)
     rate = 1.0 / step
     top = max_cutoff_hz(step, settings)
     if settings.accel_cutoff_hz > 0:

@@ -84,6 +84,10 @@ class DiscrepancySettings:
         0.2, "1", "the cut-off is at most this fraction of the sample rate (a slow recorder: "
         "the filter must stay well below Nyquist); the highest candidate of the choice",
         lo=0.01, hi=0.45)
+    accel_grid_min_share: float = field(
+        0.1, "1", "a file of runs at several rates: the grid tops at the safe cut-off of the "
+        "fastest rate that holds this share of the samples (a run of 40 rows among 3000 "
+        "does not set the cut-off of the whole file)", lo=0.0, hi=1.0)
     accel_cutoff_grid_points: int = field(
         8, "1", "candidate cut-offs of the cross-validated choice, log-spaced", lo=2, hi=50)
     accel_cutoff_grid_span: float = field(
@@ -109,6 +113,17 @@ class DiscrepancySettings:
     stribeck_max_speed_fraction: float = field(
         0.5, "1", "largest Stribeck velocity tried, as a fraction of the 90th percentile of "
         "|nut speed|: a larger one makes stribeck a copy of seal_drag", lo=0.01, hi=1.0)
+    pre_rolling_min_travel_rad: float = field(
+        1e-4, "rad", "shortest pre-rolling travel tried (nut rotation; 0.3 um of axial travel "
+        "at a 20 mm lead)", lo=0.0, lo_open=True)
+    pre_rolling_max_travel_rad: float = field(
+        0.05, "rad", "longest pre-rolling travel tried (160 um at a 20 mm lead, several times "
+        "the tens of um measured on ball screws): beyond it a build-up is a speed effect "
+        "(Stribeck, viscous), not pre-rolling", lo=0.0, lo_open=True)
+    pre_rolling_min_samples: float = field(
+        3.0, "samples", "a pre-rolling travel is tried only if it spans at least this many "
+        "samples after a reversal (the median first-sample rotation of the recording's "
+        "reversals): a recorder too slow to see it leaves the term untested", lo=1.0)
     thermal_min_tau_fraction: float = field(
         0.05, "1", "shortest thermal time constant tried, as a fraction of the fit span",
         lo=1e-3, hi=1.0)

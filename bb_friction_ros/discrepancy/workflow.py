@@ -36,7 +36,8 @@ from bb_friction_ros.discrepancy.bandwidth import (acceleration_filter_of, choos
                                                    with_acceleration)
 from bb_friction_ros.discrepancy.data import inputs_of
 from bb_friction_ros.discrepancy.reference import RigidBody
-from bb_friction_ros.discrepancy.selection import (ambiguities, candidates, refit_all,
+from bb_friction_ros.discrepancy.selection import (ambiguities, candidates,
+                                                   pre_rolling_grid, refit_all,
                                                    RIGID_BODY_TERMS, select, to_termset)
 from bb_friction_ros.empirical_terms import filter_lag_s, TermSet
 from bb_friction_ros.model_file import physics_of, read_model_file, write_model_file
@@ -255,6 +256,10 @@ def analyse(rec, settings, physics=None):
         raise InsufficientData(nonconvergence_first(missing, dropped, rec_in))
     if choice is not None and not choice.inertia_identifiable:
         untested.setdefault("inertia", choice.reason)
+    if "pre_rolling" not in untested:
+        grid = pre_rolling_grid(x_fit, settings)
+        if isinstance(grid, str):
+            untested["pre_rolling"] = grid
     if "stribeck" not in untested:
         grid = [c for c in candidates(x_fit, settings) if c.name == "stribeck"][0].grid
         if not grid[-1] > grid[0]:
