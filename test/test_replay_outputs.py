@@ -251,3 +251,18 @@ def test_a_bag_read_whole_has_no_unread_messages(tmp_path):
     summary = replay(tmp_path / "bag", tmp_path / "out", progress=False)
     assert summary["messages_of_unknown_topics"] == 0
     assert summary["warnings"] == []
+
+
+def test_an_output_bag_that_is_a_symlink_is_unlinked_not_followed(tmp_path):
+    """OUT/bag a symlink to a directory of the user's: replay removes the link, never the
+    directory it points to (its files stay)."""
+    keep = tmp_path / "precious"
+    keep.mkdir()
+    (keep / "data.txt").write_text("mine")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "bag").symlink_to(keep, target_is_directory=True)
+    write_events(tmp_path / "in", short_recording(), storage="mcap")
+    assert main(["replay", str(tmp_path / "in"), "--out", str(out), "--no-progress"]) == 0
+    assert (keep / "data.txt").read_text() == "mine"
+    assert not (out / "bag").is_symlink() and (out / "bag" / "metadata.yaml").exists()
