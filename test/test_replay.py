@@ -218,7 +218,8 @@ def test_replay_bag_feedforward_is_the_safe_value_of_unconverged_steps(tmp_path)
                      feedforward_nm=0.21, feedforward_held=True)
     out = _OutputBag(tmp_path / "bag", [])
     for pred in (good, bad):
-        out.publish(pred, int(round(pred.stamp_s * 1e9)), 0.001)
+        stamp = int(round(pred.stamp_s * 1e9))
+        out.publish(pred, stamp, stamp, 0.001)
     out.close()
     store = friction_typestore()
     got = {}
@@ -414,7 +415,7 @@ def test_missing_or_mistyped_topics_exit_2_naming_them(tmp_path, capsys, types, 
 
 
 def test_summary_counts_messages_read_not_metadata(tmp_path):
-    """Issue 13 finding 13: metadata.yaml claiming 99,999 messages does not fool the summary."""
+    """metadata.yaml claiming 99,999 messages does not fool the summary, and is warned about."""
     import yaml
     events = _states(n=45)
     write_events(tmp_path / "bag", events, storage="mcap")
@@ -429,6 +430,10 @@ def test_summary_counts_messages_read_not_metadata(tmp_path):
     summary = replay(tmp_path / "bag", tmp_path / "out", progress=False)
     assert summary["messages"]["/nut_state"] == 45
     assert summary["messages"]["/axial_load"] == 1
+    # and the disagreement is said, not left for the user to find
+    (listed,) = [w for w in summary["warnings"] if str(meta_path) in w]
+    assert "99999 on /axial_load (1 read), 99999 on /measured_torque (0 read), " \
+        "99999 on /nut_state (45 read)" in listed
 
 
 def test_looping_bag_aligns_measurement_within_each_run(tmp_path):
