@@ -266,3 +266,17 @@ def test_an_output_bag_that_is_a_symlink_is_unlinked_not_followed(tmp_path):
     assert main(["replay", str(tmp_path / "in"), "--out", str(out), "--no-progress"]) == 0
     assert (keep / "data.txt").read_text() == "mine"
     assert not (out / "bag").is_symlink() and (out / "bag" / "metadata.yaml").exists()
+
+
+def test_discrepancy_says_so_too(tmp_path):
+    """The discrepancy workflow reads bags through the same reader: the same warning."""
+    from recordings import model_friction
+    events = short_recording(state_rate_hz=1000.0, segment_s=1.0, measured=model_friction)
+    write_events(tmp_path / "bag", events, storage="sqlite3")
+    db = _orphan_rows(tmp_path / "bag", 99)
+    out = tmp_path / "out"
+    assert main(["discrepancy", str(tmp_path / "bag"), "--out", str(out), "--no-progress",
+                 "--no-plots"]) in (0, 2)
+    summary = json.loads((out / "summary.json").read_text())
+    warnings = summary.get("warnings", []) + summary.get("input", {}).get("notes", [])
+    assert any(str(db) in w and "99 messages" in w for w in warnings)

@@ -232,6 +232,8 @@ def load_bag(path, config_path, replay_settings=NodeParameters(), topics=Topics(
     with src:
         rec = _load_bag_input(src, path, config_path, replay_settings, topics, progress,
                               baseline, measured)
+        # rows of an unknown topic, messages not read: said in summary.json's warnings
+        rec.info["notes"] = rec.info.get("notes", []) + src.warnings(all_topics=False)
     if current is not None:
         rec.info["measured_torque_source"] = (f"topic {current[1]} (motor current) x "
                                               f"{current[0]:g} N m/A ({CURRENT_FLAG})")
