@@ -23,6 +23,10 @@ FEEDFORWARD = "friction/feedforward"
 PROFILE = "friction/feedforward_profile"
 CONTACT_GROUPS = "friction/contact_groups"
 DIAGNOSTICS = "/diagnostics"
+# Feedforward along a planned trajectory: in, the plan; out, the same points with the
+# predicted friction torque in ``effort`` [N m] (planned.planned_feedforward)
+PLANNED_TRAJECTORY = "friction/planned_trajectory"
+PLANNED_FEEDFORWARD = "friction/planned_feedforward"
 
 # --- message types (ROS 2 'package/msg/Type' names) ----------------------------------------
 JOINT_STATE = "sensor_msgs/msg/JointState"
@@ -37,9 +41,11 @@ TYPES = {
     PROFILE: f"{MSGS_PACKAGE}/msg/FeedforwardProfile",
     CONTACT_GROUPS: f"{MSGS_PACKAGE}/msg/ContactGroupStatus",
     DIAGNOSTICS: "diagnostic_msgs/msg/DiagnosticArray",
+    PLANNED_TRAJECTORY: "trajectory_msgs/msg/JointTrajectory",
+    PLANNED_FEEDFORWARD: "trajectory_msgs/msg/JointTrajectory",
 }
 # What the node publishes (another publisher on one of them is reported: two nodes?).
-OUTPUTS = (PREDICTION, FEEDFORWARD, PROFILE, CONTACT_GROUPS)
+OUTPUTS = (PREDICTION, FEEDFORWARD, PROFILE, CONTACT_GROUPS, PLANNED_FEEDFORWARD)
 # What replay writes into its output bag, in the node's order of publication per input;
 # the profile (a wall-clock look-ahead of the model thread) is not reproduced offline.
 REPLAYED_OUTPUTS = (PREDICTION, CONTACT_GROUPS, FEEDFORWARD)

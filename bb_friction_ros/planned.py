@@ -271,3 +271,38 @@ def write_feedforward(out, ff, config_path, source):
                "complete": True}
     (out / "summary.json").write_text(json.dumps(summary, indent=2, allow_nan=False))
     return summary
+
+
+def trajectory_rows(joint_names, times_from_start_s, positions, velocities, nut_joint,
+                    start_s):
+    """
+    Return (t_s, nut_angle_rad, nut_velocity_rad_s, index of the nut joint) of a trajectory.
+
+    The arrays of a ``trajectory_msgs/JointTrajectory`` (``joint_trajectory_controller``'s
+    message): ``positions[k]`` and ``velocities[k]`` the k-th point's, one per joint (a point
+    without velocities: central differences of the nut's positions in time).  ``start_s`` is
+    the header stamp (the caller puts "now" for a stamp of 0, as the controller does).  Raises
+    PlannedTrajectoryError naming what is missing.
+    """
+    names = list(joint_names)
+    if nut_joint not in names:
+        raise PlannedTrajectoryError(f"no joint named {nut_joint!r} in the trajectory "
+                                     f"(joint_names {names})")
+    j = names.index(nut_joint)
+    if not len(positions):
+        raise PlannedTrajectoryError("the trajectory has no points")
+    phi, w = [], []
+    for k, pos in enumerate(positions):
+        if len(pos) != len(names):
+            raise PlannedTrajectoryError(f"point {k}: {len(pos)} positions for {len(names)} "
+                                         "joints")
+        phi.append(float(pos[j]))
+        v = velocities[k] if k < len(velocities) else ()
+        w.append(float(v[j]) if len(v) == len(names) else math.nan)
+    t = start_s + np.asarray(times_from_start_s, dtype=float)
+    phi, w = np.array(phi), np.array(w)
+    if np.isnan(w).any():
+        if t.size < 2:
+            raise PlannedTrajectoryError("a one-point trajectory needs its velocity")
+        w = np.where(np.isnan(w), np.gradient(phi, t), w)
+    return t, phi, w, j

@@ -91,7 +91,11 @@ def test_the_names_are_the_contract():
     assert (interface.NUT_STATE, interface.AXIAL_LOAD, interface.MEASURED_TORQUE) == \
         ("nut_state", "axial_load", "measured_torque")
     assert interface.OUTPUTS == ("friction/prediction", "friction/feedforward",
-                                 "friction/feedforward_profile", "friction/contact_groups")
+                                 "friction/feedforward_profile", "friction/contact_groups",
+                                 "friction/planned_feedforward")
+    assert interface.PLANNED_TRAJECTORY == "friction/planned_trajectory"
+    assert interface.TYPES[interface.PLANNED_TRAJECTORY] == \
+        interface.TYPES[interface.PLANNED_FEEDFORWARD] == "trajectory_msgs/msg/JointTrajectory"
     assert interface.DIAGNOSTICS == "/diagnostics"
     assert interface.TYPES[interface.FEEDFORWARD] == "std_msgs/msg/Float64MultiArray"
     assert interface.TYPES[interface.NUT_STATE] == "sensor_msgs/msg/JointState"

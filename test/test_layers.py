@@ -29,7 +29,7 @@ LAYERS = {
 # installed share directory is; it works without it.)
 FIRST_ROS_LAYER = 4
 ROS_MODULES = ("rclpy", "rcl_interfaces", "builtin_interfaces", "std_msgs", "sensor_msgs",
-               "geometry_msgs", "diagnostic_msgs", "bb_friction_msgs")
+               "geometry_msgs", "diagnostic_msgs", "bb_friction_msgs", "trajectory_msgs")
 
 
 def component(module):
