@@ -556,12 +556,12 @@ class LiveSchedule:
 
     @property
     def params(self):
-        """The node's parameters now (NodeParameters)."""
+        """Return the node's parameters now (NodeParameters)."""
         return self._params
 
     @property
     def held_load_n(self):
-        """The axial load held for the next nut state [N], or None before any."""
+        """Return the axial load held for the next nut state [N], or None before any."""
         return self._assembler.load_n
 
     def status(self, extra_warnings=()):

@@ -173,8 +173,10 @@ def run_slices(rec):
 
 def grid_step_s(rec, min_share):
     """
-    Return the sample step [s] whose safe cut-off tops the grid: the fastest rate at which at
-    least ``min_share`` of the samples were taken (that rate or faster).
+    Return the sample step [s] whose safe cut-off tops the cut-off grid.
+
+    It is the step of the fastest rate at which, with the faster ones, at least
+    ``min_share`` of the samples were taken.
     """
     steps, rows = [], []
     for sl in run_slices(rec):
