@@ -71,7 +71,7 @@ COLLECTOR_QOS_DEPTH = 1000
 PREDICTION_FIELDS = ("nut_angle_rad", "nut_velocity_rad_s", "axial_load_n", "torque_total_nm",
                      "torque_b2g_nm", "torque_b2b_nm", "torque_empirical_nm", "converged",
                      "model_latency_s", "model_age_s", "n_groups", "torque_state_nm",
-                     "state_other_direction")
+                     "state_other_direction", "arrangement", "arrangement_confidence")
 _FROM_PUBLISHER = ("model_latency_s", "n_groups")
 PREDICTION_FROM_RUNNER = tuple(f for f in PREDICTION_FIELDS if f not in _FROM_PUBLISHER)
 
@@ -81,7 +81,8 @@ def prediction_values(pred, latency_s):
     return (pred.nut_angle_rad, pred.nut_velocity_rad_s, pred.axial_load_n,
             pred.torque_total_nm, pred.torque_b2g_nm, pred.torque_b2b_nm,
             pred.torque_empirical_nm, bool(pred.converged), latency_s, pred.model_age_s,
-            len(pred.groups), pred.torque_state_nm, bool(pred.state_other_direction))
+            len(pred.groups), pred.torque_state_nm, bool(pred.state_other_direction),
+            int(pred.arrangement), pred.arrangement_confidence)
 
 
 # --- DDS isolation -------------------------------------------------------------------------

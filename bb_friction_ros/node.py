@@ -37,8 +37,8 @@ from bb_friction_ros.live import LiveSchedule, Outputs, process_age_s, process_c
 from bb_friction_ros.node_parameters import (MODEL_PARAMETERS, NODE_NAME, node_parameters,
                                              NodeParameters, ros_type, RUNTIME,
                                              unknown_parameters)
-from bb_friction_ros.planned import planned_feedforward, PlannedTrajectoryError, \
-    trajectory_rows
+from bb_friction_ros.planned import planned_feedforward, PlannedSettings, \
+    PlannedTrajectoryError, trajectory_rows
 from bb_friction_ros.ros_inputs import InputTaker
 from bb_friction_ros.runner import build_runner, InputAssembler
 
@@ -109,7 +109,8 @@ class FrictionNode(Node):
         self._planner = concurrent.futures.ThreadPoolExecutor(1, "friction_planner")
         self.planned = {"received": 0, "published": 0, "rejected": 0, "last_error": ""}
         self.live = LiveSchedule(
-            build_runner(_model_file(p), *p.schedule()),
+            build_runner(_model_file(p), *p.schedule(),
+                         b2b_feedforward=p.b2b_feedforward),
             InputAssembler(p.nut_joint, p.max_axial_load_n), p,
             Outputs(answer=self._answer, groups=self._publish_groups,
                     profile=self._publish_profile,    # log: level "info", "warning", ...
@@ -167,7 +168,8 @@ class FrictionNode(Node):
             load = self.live.held_load_n
             if load is None:
                 raise PlannedTrajectoryError("no axial_load received yet")
-            ff = planned_feedforward(t, phi, w, load, _model_file(p))
+            ff = planned_feedforward(t, phi, w, load, _model_file(p), PlannedSettings(
+                model_step_deg=p.model_step_deg, b2b_feedforward=p.b2b_feedforward))
         except (BBFrictionError, ValueError) as exc:
             self.planned["rejected"] += 1
             self.planned["last_error"] = str(exc)
@@ -271,7 +273,8 @@ class FrictionNode(Node):
             new = node_parameters(updates, node_parameters(current))
             runner = None
             if MODEL_PARAMETERS & updates.keys():
-                runner = build_runner(_model_file(new), *new.schedule())
+                runner = build_runner(_model_file(new), *new.schedule(),
+                                      b2b_feedforward=new.b2b_feedforward)
         except ConfigError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
         except Exception as exc:     # a model that cannot be built: refused, node lives

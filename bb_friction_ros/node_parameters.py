@@ -15,6 +15,11 @@ from bb_friction_ros.config import ConfigError, field, load_yaml, validate
 NODE_NAME = "friction_node"
 
 _ROS_TYPES = {bool: "a bool", int: "an integer", float: "a double", str: "a string"}
+# The B2B torque the feedforward carries: the model state's own ("model"), or its mean over
+# the balls' arrangements ("averaged", ball_screw/arrangement.py: the machine never sees the
+# arrangement, and a ripple of the wrong phase made tracking worse than no model of it).
+B2B_MODEL, B2B_AVERAGED = "model", "averaged"
+B2B_FEEDFORWARDS = (B2B_AVERAGED, B2B_MODEL)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -69,6 +74,11 @@ class NodeParameters:
                                            "periods of motion", lo=2.0, hi=20.0)
     profile_points: int = field(3, "1", "points of the look-ahead profile (the first is the "
                                 "step's own angle)", lo=2, hi=64)
+    b2b_feedforward: str = field(B2B_AVERAGED, None, "the B2B torque in the feedforward: "
+                                 "'averaged', its mean over the balls' arrangements (the "
+                                 "machine never sees theirs), or 'model', the model "
+                                 "state's own (a ripple tied to the arrangement the model "
+                                 "assumed at its reset); the prediction keeps the state's")
     gil_switch_interval_s: float = field(2.5e-4, "s", "how long a Python thread of the node "
                                          "runs before another may take the interpreter "
                                          "(sys.setswitchinterval; CPython's default 5 ms lets "
@@ -102,6 +112,9 @@ class NodeParameters:
         if not self.nut_joint.strip():
             raise ConfigError(f"{path}.nut_joint: must be a non-empty joint name, got "
                               f"{self.nut_joint!r}")
+        if self.b2b_feedforward not in B2B_FEEDFORWARDS:
+            raise ConfigError(f"{path}.b2b_feedforward: must be one of "
+                              f"{', '.join(B2B_FEEDFORWARDS)}, got {self.b2b_feedforward!r}")
         if self.max_model_step_deg < self.model_step_deg:
             raise ConfigError(f"{path}.max_model_step_deg: must be >= model_step_deg = "
                               f"{self.model_step_deg:g} deg, got {self.max_model_step_deg:g}")
@@ -112,9 +125,11 @@ RUNTIME = frozenset({"nut_joint", "model_rate_hz", "groups_rate_hz", "max_axial_
                      "config_file", "max_answer_age_s", "max_backlog_s",
                      "profile_horizon_periods", "profile_points", "model_step_deg",
                      "max_model_step_deg", "input_timeout_s", "model_rate_tolerance",
-                     "gil_switch_interval_s", "step_after_answer_fraction"})
+                     "gil_switch_interval_s", "step_after_answer_fraction",
+                     "b2b_feedforward"})
 MODEL_PARAMETERS = frozenset({"config_file", "model_rate_hz", "model_step_deg",
-                              "max_model_step_deg", "step_after_answer_fraction"})
+                              "max_model_step_deg", "step_after_answer_fraction",
+                              "b2b_feedforward"})
 FIELDS = {f.name: f for f in dataclasses.fields(NodeParameters)}
 # declared by rclpy itself for every node: in a params file, neither ours nor unknown
 ROS_BUILTIN_PARAMETERS = frozenset({"use_sim_time", "start_type_description_service"})

@@ -23,9 +23,11 @@ import math
 
 import numpy as np
 
-from bb_friction_ros.config import BBFrictionError, field, from_mapping
+from bb_friction_ros.ball_screw.arrangement import mean_b2b
+from bb_friction_ros.config import BBFrictionError, ConfigError, field, from_mapping
 from bb_friction_ros.empirical_terms import dahl_state, NOT_FRICTION, TermSet
-from bb_friction_ros.node_parameters import NodeParameters
+from bb_friction_ros.model_file import NoPhysics
+from bb_friction_ros.node_parameters import B2B_AVERAGED, B2B_FEEDFORWARDS, NodeParameters
 from bb_friction_ros.runner import InputSample, load_checked_model, ModelRunner
 
 # The runner steps when the angle turned a model step, when the direction changed, or when a
@@ -53,6 +55,15 @@ class PlannedSettings:
     model_step_deg: float = field(
         1.8, "deg", "largest nut rotation between two model steps (sub-steps between rows "
         "further apart), as the node's model_step_deg", lo=0.01, hi=90.0)
+    b2b_feedforward: str = field(
+        B2B_AVERAGED, None, "the B2B torque fed forward: 'averaged' over the balls' "
+        "arrangements, or the 'model' state's own (the node's b2b_feedforward)")
+
+    def check(self, path):
+        """Refuse an unknown ``b2b_feedforward``, naming it."""
+        if self.b2b_feedforward not in B2B_FEEDFORWARDS:
+            raise ConfigError(f"{path}.b2b_feedforward: must be one of "
+                              f"{', '.join(B2B_FEEDFORWARDS)}, got {self.b2b_feedforward!r}")
 
 
 def load_planned_settings(mapping, path="feedforward"):
@@ -125,6 +136,8 @@ def planned_feedforward(t_s, nut_angle_rad, nut_velocity_rad_s, axial_load_n, co
         t_s, nut_angle_rad, nut_velocity_rad_s, axial_load_n)))
     _check(t, phi, w, load)
     cfg, terms, screw = load_checked_model(config_path)
+    mean = mean_b2b(cfg) if settings.b2b_feedforward == B2B_AVERAGED \
+        and not isinstance(screw, NoPhysics) else None
     friction = TermSet(x for x in terms.terms if x.name not in NOT_FRICTION)
     runner = ModelRunner(screw, EVERY_ROW_RATE_HZ, friction if len(friction) else None,
                          settings.model_step_deg,
@@ -138,8 +151,10 @@ def planned_feedforward(t_s, nut_angle_rad, nut_velocity_rad_s, axial_load_n, co
         if p is None:
             raise PlannedTrajectoryError(f"row {k}: the model failed ({runner.stats.last_error})")
         if w[k] != 0.0:
-            out["ff"][k], out["b2g"][k] = p.torque_total_nm, p.torque_b2g_nm
-            out["b2b"][k], out["emp"][k] = p.torque_b2b_nm, p.torque_empirical_nm
+            b2b = p.torque_b2b_nm if mean is None else mean.at(load[k], w[k])
+            out["ff"][k], out["b2g"][k] = p.torque_total_nm - p.torque_b2b_nm + b2b, \
+                p.torque_b2g_nm
+            out["b2b"][k], out["emp"][k] = b2b, p.torque_empirical_nm
         converged[k] = p.converged
     breakaway = _breakaway_rows(t, w, settings.breakaway_lead_s)
     # the pre-rolling terms' state along the plan (as the runner's): a start against the
@@ -150,8 +165,11 @@ def planned_feedforward(t_s, nut_angle_rad, nut_velocity_rad_s, axial_load_n, co
         start = k + int(np.argmax(w[k:] != 0.0))
         direction = math.copysign(1.0, w[start])
         lag = sum(a * (z[k] - direction) for a, z in pre_rolling)
-        b = breakaway_torque(screw, friction, phi[k], direction, load[k], lag)
-        out["ff"][k], out["b2g"][k], out["b2b"][k], out["emp"][k] = b
+        total, b2g, b2b, emp = breakaway_torque(screw, friction, phi[k], direction, load[k],
+                                                lag)
+        if mean is not None and total != 0.0:
+            total, b2b = total - b2b + mean.at(load[k], direction), mean.at(load[k], direction)
+        out["ff"][k], out["b2g"][k], out["b2b"][k], out["emp"][k] = total, b2g, b2b, emp
     return PlannedFeedforward(t, out["ff"], out["b2g"], out["b2b"], out["emp"], converged,
                               breakaway, friction.names,
                               tuple(x.name for x in terms.terms if x.name in NOT_FRICTION),

@@ -196,8 +196,8 @@ class _Series:
 _CDR_LE = b"\x00\x01\x00\x00"
 # FrictionPrediction: header (sec, nanosec, frame_id "" = length 1 + NUL, pad to 16), seven
 # float64, converged (bool, pad to 80), model_latency_s, model_age_s, n_groups (pad to 104),
-# torque_state_nm, state_other_direction.
-_PREDICTION_CDR = struct.Struct("<4siII1s3x7d?7x2dI4xd?")
+# torque_state_nm, state_other_direction, arrangement (pad to 120), arrangement_confidence.
+_PREDICTION_CDR = struct.Struct("<4siII1s3x7d?7x2dI4xd?B6xd")
 # Float64MultiArray: layout (no dims, data_offset 0), data of length 1 (pad to 16), the value.
 _FEEDFORWARD_CDR = struct.Struct("<4sIII4xd")
 
@@ -356,7 +356,8 @@ def replay(bag, out, config=None, settings=NodeParameters(), topics=Topics(), pr
     _remove_earlier_outputs(bag, out)
     with BagInput(bag, topics) as src:
         runner = build_runner(config or settings.config_file
-                              or bundled_config("ball_screw.yaml"), *settings.schedule())
+                              or bundled_config("ball_screw.yaml"), *settings.schedule(),
+                              b2b_feedforward=settings.b2b_feedforward)
         assembler = InputAssembler(settings.nut_joint, settings.max_axial_load_n)
         # metadata's count decides only whether the column exists: an empty measured topic
         # would hold every row back waiting for a measurement

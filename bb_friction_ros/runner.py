@@ -62,10 +62,12 @@ import time
 import numpy as np
 
 from bb_friction_ros.bags import LATE_SAMPLES_MAX, LATE_STAMP_TOLERANCE_S
+from bb_friction_ros.ball_screw.arrangement import mean_b2b
 from bb_friction_ros.ball_screw.whole_screw import WholeScrew
 from bb_friction_ros.config import BBFrictionError, ConfigError
 from bb_friction_ros.empirical_terms import TermSet
 from bb_friction_ros.model_file import load_model_file, NoPhysics, physics_of
+from bb_friction_ros.node_parameters import B2B_AVERAGED, B2B_FEEDFORWARDS, B2B_MODEL
 
 
 # Stamps are compared as float seconds: at epoch times (~1.7e9 s) their resolution is ~0.24 us,
@@ -90,6 +92,9 @@ RELAX_MAX_S = 2.0
 # profile (``profile_fits``): the cold first step (about 3.7 ms, 20-40 warm steps) moves it
 # by a fraction, a trend moves it within some 10 steps.
 STEP_TIME_WEIGHT = 0.1
+# FrictionPrediction.arrangement: which B2B torque the feedforward carries (the .msg's
+# constants; an arrangement locked by an observer would be 2)
+ARRANGEMENT_MODEL, ARRANGEMENT_AVERAGED = 0, 1
 # Sub-steps between two input samples at most: more is a jump of the angle (a gap in the
 # input or an encoder glitch), crossed in this many coarser steps rather than a burst of CPU.
 MAX_SUBSTEPS = 64
@@ -128,10 +133,14 @@ class Prediction:
     # above are 0 N m when the state belongs to the other direction (state_other_direction)
     torque_state_nm: float = 0.0
     state_other_direction: bool = False
+    # which B2B torque feedforward_nm carries: ARRANGEMENT_MODEL (the state's own) or
+    # ARRANGEMENT_AVERAGED (the mean over arrangements); the confidence of a locked one
+    arrangement: int = 0
+    arrangement_confidence: float = 0.0
 
 
 # A Prediction is built for every input sample; the frozen dataclass's __init__ sets each of
-# its 17 fields through object.__setattr__: 1.9 us of the ~6 us the runner spends on a sample
+# its 19 fields through object.__setattr__: 1.9 us of the ~6 us the runner spends on a sample
 # answered from the held state (issue 20, replay at 1 rev/s).  ``_prediction`` fills the same
 # instance dict in one update (0.8 us): an equal, equally frozen and hashable Prediction.
 _PREDICTION_FIELDS = tuple(f.name for f in fields(Prediction))
@@ -139,7 +148,7 @@ _new_object = object.__new__
 
 
 def _prediction(*values):
-    """Return ``Prediction(*values)`` (all 17 fields, positional), built without __init__."""
+    """Return ``Prediction(*values)`` (all 19 fields, positional), built without __init__."""
     pred = _new_object(Prediction)
     pred.__dict__.update(zip(_PREDICTION_FIELDS, values))
     return pred
@@ -256,7 +265,7 @@ class ModelRunner:
     """
 
     def __init__(self, screw, model_rate_hz, terms=None, model_step_deg=None,
-                 max_model_step_deg=None, step_after_answer_fraction=None):
+                 max_model_step_deg=None, step_after_answer_fraction=None, mean_b2b=None):
         """
         Wrap ``screw``, stepped by nut rotation with a time floor (module docstring).
 
@@ -268,6 +277,9 @@ class ModelRunner:
         is at most this fraction of a step past the one before (module docstring).
         ``terms`` (an empirical_terms.TermSet, optional) adds fitted empirical torque, evaluated
         at every sample's own inputs; its time is the stamp since the run's first sample.
+        ``mean_b2b`` (``ball_screw.arrangement.MeanB2B``, optional): the feedforward carries
+        the B2B torque averaged over the balls' arrangements instead of the model state's own
+        (the prediction keeps the state's); None: the state's.
         """
         from bb_friction_ros.node_parameters import NodeParameters
         defaults = NodeParameters()
@@ -287,6 +299,8 @@ class ModelRunner:
                              f"{model_step_deg} and {max_model_step_deg}")
         self.screw = screw
         self.terms = terms
+        self.mean_b2b = mean_b2b
+        self._arrangement = ARRANGEMENT_MODEL if mean_b2b is None else ARRANGEMENT_AVERAGED
         # stateful per-sample evaluation: the inertia term's causal acceleration filter
         self._live_terms = terms.live() if terms is not None else None
         self._first_stamp = None
@@ -558,8 +572,7 @@ class ModelRunner:
         elif step:
             self._step_to(sample, extra)
         elif stepped:
-            self._update_held(self._with_terms(self._state.torque_total_nm, extra,
-                                               sample.nut_velocity_rad_s)[0],
+            self._update_held(self._state_feedforward(extra, sample),
                               sample.nut_velocity_rad_s)
         return self._answer(sample, extra, stepped or step,
                             sample.stamp_s - self._model_stamp)
@@ -573,9 +586,25 @@ class ModelRunner:
         """
         self._substeps_to(sample)
         self._take_step(sample, sample.stamp_s - self._model_stamp)
-        self._update_held(self._with_terms(self._state.torque_total_nm, extra,
-                                           sample.nut_velocity_rad_s)[0],
-                          sample.nut_velocity_rad_s)
+        self._update_held(self._state_feedforward(extra, sample), sample.nut_velocity_rad_s)
+
+    def _state_feedforward(self, extra, sample):
+        """Return the feedforward of the state just stepped at ``sample`` (held if needed)."""
+        total, cut = self._with_terms(self._state.torque_total_nm, extra,
+                                      sample.nut_velocity_rad_s)
+        return self._feedforward(total, cut, self._state.torque_b2b_nm, sample)
+
+    def _feedforward(self, total, cut, b2b_nm, sample):
+        """
+        Return the feedforward of an answered ``total``: its B2B part averaged over arrangements.
+
+        With ``mean_b2b`` the state's own B2B torque (``b2b_nm``) is replaced by the mean over
+        arrangements at the sample's load; a friction cut to 0 stays 0.
+        """
+        if self.mean_b2b is None or cut:
+            return total
+        return total - b2b_nm + self.mean_b2b.at(sample.axial_load_n,
+                                                 sample.nut_velocity_rad_s)
 
     def _with_terms(self, state_nm, extra, nut_velocity_rad_s):
         """
@@ -628,7 +657,7 @@ class ModelRunner:
             if cut:             # the parts still sum to the total
                 self.stats.friction_cut += 1
                 extra = total - b2g - b2b
-            ff, held = total, False
+            ff, held = self._feedforward(total, cut, b2b, sample), False
         else:
             ff, held = 0.0, True
             if self._held is not None and self._held[1] == direction:
@@ -636,7 +665,8 @@ class ModelRunner:
         return _prediction(sample.stamp_s, sample.nut_angle_rad, sample.nut_velocity_rad_s,
                            sample.axial_load_n, total, b2g, b2b, extra, converged,
                            model_age_s, self._state_groups,
-                           self._state_n_balls, stepped, ff, held, state_total, other)
+                           self._state_n_balls, stepped, ff, held, state_total, other,
+                           self._arrangement, 0.0)
 
     def _substeps_to(self, sample):
         """
@@ -765,7 +795,8 @@ class ModelRunner:
         return ProfileSeed(copy.copy(self.screw), sample, self._state.torque_total_nm,
                            self._state_converged, self.period_s * self.scale, self.terms,
                            sample.stamp_s - self._first_stamp, accel,
-                           self.step_rad * self.scale, self.step_rad * self.max_scale)
+                           self.step_rad * self.scale, self.step_rad * self.max_scale,
+                           self.mean_b2b, self._state.torque_b2b_nm)
 
 
 @dataclass(frozen=True)
@@ -787,6 +818,8 @@ class ProfileSeed:
     # the largest step the copy takes between two points [rad] (max_model_step_deg): steps
     # are cheapest per degree there, and the live node can abandon a profile between them
     max_step_rad: float = math.inf
+    mean_b2b: object = None     # the runner's: the profile's B2B part averaged too
+    torque_b2b_nm: float = 0.0  # the step's own B2B torque
 
 
 def profile_horizon_rad(seed, horizon_periods):
@@ -857,8 +890,14 @@ def look_ahead_profile(seed, horizon_periods=2.0, n_points=3, should_stop=None):
         return float(seed.terms.torque_nm(seed.run_time_s + t_s, angle, w, s.axial_load_n,
                                           seed.nut_accel_rad_s2))
 
+    def b2b(own_nm):
+        """The B2B part of a point's torque: the mean over arrangements, or its own."""
+        if seed.mean_b2b is None:
+            return 0.0
+        return seed.mean_b2b.at(s.axial_load_n, w) - own_nm
+
     angles = [s.nut_angle_rad]
-    torques = [seed.torque_total_nm + extra(0.0, s.nut_angle_rad)]
+    torques = [seed.torque_total_nm + b2b(seed.torque_b2b_nm) + extra(0.0, s.nut_angle_rad)]
     converged = seed.converged
     if w == 0.0 or n_points < 2:
         return angles, torques, converged
@@ -876,7 +915,7 @@ def look_ahead_profile(seed, horizon_periods=2.0, n_points=3, should_stop=None):
             res = screw.step(angle, w, s.axial_load_n, dt / n_sub, substep=j < n_sub)
             converged = converged and bool(res.converged)
         angles.append(angle)
-        torques.append(res.torque_total_nm + extra(dt * i, angle))
+        torques.append(res.torque_total_nm + b2b(res.torque_b2b_nm) + extra(dt * i, angle))
     return angles, torques, converged
 
 
@@ -989,7 +1028,7 @@ def load_checked_model(config_path):
 
 
 def build_runner(config_path, model_rate_hz, model_step_deg=None, max_model_step_deg=None,
-                 step_after_answer_fraction=None):
+                 step_after_answer_fraction=None, b2b_feedforward=B2B_MODEL):
     """
     Build a ModelRunner around the whole-screw model of a model file.
 
@@ -998,8 +1037,14 @@ def build_runner(config_path, model_rate_hz, model_step_deg=None, max_model_step
     defaults (``node_parameters.NodeParameters``), and so is ``step_after_answer_fraction``.
     """
     cfg, terms, screw = load_checked_model(config_path)
+    if b2b_feedforward not in B2B_FEEDFORWARDS:
+        raise ValueError(f"b2b_feedforward must be one of {B2B_FEEDFORWARDS}, got "
+                         f"{b2b_feedforward!r}")
+    mean = None
+    if b2b_feedforward == B2B_AVERAGED and not isinstance(screw, NoPhysics):
+        mean = mean_b2b(cfg)
     runner = ModelRunner(screw, model_rate_hz, terms if len(terms) else None,
-                         model_step_deg, max_model_step_deg, step_after_answer_fraction)
+                         model_step_deg, max_model_step_deg, step_after_answer_fraction, mean)
     runner.warm_up(cfg.operation.axial_load_n, cfg.operation.nut_velocity_rad_s)
     return runner
 

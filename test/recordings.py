@@ -27,3 +27,17 @@ def short_recording(state_rate_hz=100.0, segment_s=0.25, measured=None):
                         segments_rev_s=(1.0, -1.0), segment_duration_s=segment_s)
     predict = measured or (lambda events: [0.0] * sum(e.kind == "nut_state" for e in events))
     return make_demo_events(cfg, predict)
+
+
+def averaged_feedforward(pred):
+    """
+    Return the feedforward of a converged prediction of the bundled model (message or object).
+
+    Its torque with the B2B part replaced by the mean over the balls' arrangements (the
+    node's default ``b2b_feedforward``).
+    """
+    from bb_friction_ros.ball_screw.arrangement import mean_b2b
+    from bb_friction_ros.model_file import load_ball_screw
+    mean = mean_b2b(load_ball_screw(bundled_config("ball_screw.yaml")))
+    return pred.torque_total_nm - pred.torque_b2b_nm + mean.at(pred.axial_load_n,
+                                                               pred.nut_velocity_rad_s)

@@ -16,7 +16,7 @@ def msg_fields(name):
     out = []
     for line in (MSG_DIR / f"{name}.msg").read_text().splitlines():
         line = line.split("#", 1)[0].strip()
-        if line:
+        if line and "=" not in line:        # constants are no fields
             kind, field = line.split()[:2]
             out.append((kind, field))
     return out
@@ -34,7 +34,8 @@ def test_prediction_values_follow_the_field_order():
     names = [f.name for f in __import__("dataclasses").fields(Prediction)]
     assert set(interface.PREDICTION_FROM_RUNNER) <= set(names)
     values = {n: float(i + 1) for i, n in enumerate(names)}
-    values.update(converged=True, state_other_direction=True, groups=((1, 2), ((3, 4), (5.0,))))
+    values.update(converged=True, state_other_direction=True, arrangement=1,
+                  groups=((1, 2), ((3, 4), (5.0,))))
     pred = Prediction(**values)
     got = dict(zip(interface.PREDICTION_FIELDS, interface.prediction_values(pred, 0.25)))
     for name in interface.PREDICTION_FROM_RUNNER:
@@ -45,7 +46,7 @@ def test_prediction_values_follow_the_field_order():
 def test_replay_cdr_layout_matches_the_field_types():
     """replay's packed CDR: one struct code per field, the .msg's type (float64 d, bool ?...)."""
     from bb_friction_ros import replay
-    codes = {"float64": "d", "bool": "?", "uint32": "I"}
+    codes = {"float64": "d", "bool": "?", "uint32": "I", "uint8": "B"}
     fmt = re.sub(r"\d*x", "", replay._PREDICTION_CDR.format)       # padding is no field
     fmt = fmt.replace("<4siII1s", "")                                # encapsulation, header
     expanded = "".join(c * int(n or 1) for n, c in re.findall(r"(\d*)([a-z?A-Z])", fmt))

@@ -44,6 +44,8 @@ CONTRACTS = {
         'n_groups': 'uint32',
         'torque_state_nm': 'double',
         'state_other_direction': 'boolean',
+        'arrangement': 'uint8',
+        'arrangement_confidence': 'double',
     },
     ContactGroup: {
         'ball_ids': 'sequence<uint32>',
@@ -89,6 +91,8 @@ SAMPLES = {
         'n_groups': 3,
         'torque_state_nm': 0.0064,
         'state_other_direction': False,
+        'arrangement': 1,
+        'arrangement_confidence': 0.0,
     },
     ContactGroup: GROUPS[2],
     ContactGroupStatus: {
@@ -150,7 +154,8 @@ def to_plain(value):
                 for name in value.get_fields_and_field_types()}
     if dataclasses.is_dataclass(value):  # rosbags message
         return {f.name: to_plain(getattr(value, f.name))
-                for f in dataclasses.fields(value) if not f.name.startswith('__')}
+                for f in dataclasses.fields(value)
+                if not f.name.startswith('__') and not f.name.isupper()}   # constants
     if isinstance(value, (list, tuple, array.array, np.ndarray)):
         return [to_plain(v) for v in value]
     if isinstance(value, np.generic):

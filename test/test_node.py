@@ -21,7 +21,7 @@ from bb_friction_ros.replay import run_events
 from bb_friction_ros.runner import build_runner, InputAssembler
 from bb_friction_ros.harness import console_script, play_through_node
 from invariants import check_prediction
-from recordings import short_recording
+from recordings import averaged_feedforward, short_recording
 
 
 def replay_predictions(events):
@@ -203,7 +203,7 @@ def test_harness_publishes_inputs_and_collects_outputs(tmp_path):
         assert (pred.header.stamp.sec, pred.header.stamp.nanosec) == (10, 1_000_000)
         assert pred.converged and pred.axial_load_n == 1500.0
         ff = h.feedforward.wait_for(1)[0]
-        assert list(ff.data) == [pred.torque_total_nm]
+        assert list(ff.data) == [averaged_feedforward(pred)]
         assert h.contact_groups.wait_for(1)[0].n_balls == 37
         diag = h.diagnostics.wait_until(lambda m: any(
             kv.key == "rejected_wrong_joint" for s in m.status for kv in s.values))

@@ -9,7 +9,8 @@ import pytest
 
 from bb_friction_ros.bags import Event, read_events, with_measurement, write_events
 from bb_friction_ros.cli import main
-from recordings import short_recording
+from bb_friction_ros.config import bundled_config
+from recordings import averaged_feedforward, short_recording
 
 
 @pytest.mark.parametrize("storage", ["sqlite3", "mcap"])
@@ -98,6 +99,9 @@ def test_replay_bag_read_back_with_rosbags(tmp_path):
         for conn, log_ns, raw in reader.messages():
             got.setdefault(conn.topic, []).append((log_ns, store.deserialize_cdr(
                 raw, conn.msgtype)))
+    from bb_friction_ros.ball_screw.arrangement import mean_b2b
+    from bb_friction_ros.model_file import load_ball_screw
+    mean = mean_b2b(load_ball_screw(bundled_config("ball_screw.yaml")))
     n_states = sum(e.kind == "nut_state" for e in events)
     assert len(got["/nut_state"]) == n_states and len(got["/axial_load"]) == \
         sum(e.kind == "axial_load" for e in events)
@@ -109,7 +113,10 @@ def test_replay_bag_read_back_with_rosbags(tmp_path):
         stamp = p.header.stamp.sec * 1_000_000_000 + p.header.stamp.nanosec
         assert log_ns == stamp == state.header.stamp.sec * 1_000_000_000 \
             + state.header.stamp.nanosec
-        assert p.torque_total_nm == float(row["torque_pred_nm"]) == ff.data[0]
+        assert p.torque_total_nm == float(row["torque_pred_nm"])
+        # the feedforward: the prediction with its B2B part averaged over arrangements
+        assert ff.data[0] == p.torque_total_nm - p.torque_b2b_nm + mean.at(
+            p.axial_load_n, p.nut_velocity_rad_s)
         assert p.converged
     groups = got["/friction/contact_groups"]
     assert groups and all(g.n_balls == 37 for _, g in groups)
@@ -142,7 +149,7 @@ def test_replay_bag_decodes_with_the_mcap_library_alone(tmp_path):
     assert first.converged and first.torque_total_nm > 0
     assert log_time == first.header.stamp.sec * 10**9 + first.header.stamp.nanosec
     assert [m.data[0] for _, _, m in topics["/friction/feedforward"]] == \
-        [m.torque_total_nm for _, _, m in preds]
+        [averaged_feedforward(m) for _, _, m in preds]
     assert topics["/friction/contact_groups"][0][2].n_balls == 37
     assert len(topics["/nut_state"]) == n_states
     assert topics["/nut_state"][0][2].name == ["nut_joint"]
@@ -162,7 +169,7 @@ def test_packed_prediction_and_feedforward_are_rosbags_own_cdr():
         stamp = int(rng.integers(0, 2**31 - 1)) * 1_000_000_000 + int(rng.integers(0, 10**9))
         groups = tuple(((1, 2), (3.0,)) for _ in range(k % 4))
         pred = Prediction(0.0, *v[:7], bool(k % 3), v[7], groups, 37, False, v[8], False,
-                          v[4] + 1.0, bool(k % 2))
+                          v[4] + 1.0, bool(k % 2), k % 3, abs(v[5]) / 100.0)
         sec, nanosec = divmod(stamp, 1_000_000_000)
         header = t["std_msgs/msg/Header"](
             stamp=t["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec), frame_id="")
@@ -171,7 +178,8 @@ def test_packed_prediction_and_feedforward_are_rosbags_own_cdr():
             torque_total_nm=v[3], torque_b2g_nm=v[4], torque_b2b_nm=v[5],
             torque_empirical_nm=v[6], converged=bool(k % 3), model_latency_s=v[9],
             model_age_s=v[7], n_groups=len(groups), torque_state_nm=v[4] + 1.0,
-            state_other_direction=bool(k % 2))
+            state_other_direction=bool(k % 2), arrangement=k % 3,
+            arrangement_confidence=abs(v[5]) / 100.0)
         assert prediction_cdr(pred, sec, nanosec, v[9]) == \
             bytes(store.serialize_cdr(msg, PREDICTION_TOPIC[1], little_endian=True))
         ff = t[FEEDFORWARD_TOPIC[1]](layout=t["std_msgs/msg/MultiArrayLayout"](

@@ -521,7 +521,7 @@ def test_predictions_built_without_init_are_the_dataclass_s_own():
     import dataclasses
     from bb_friction_ros.runner import _prediction, Prediction
     values = (100.001, 0.25, 6.28, 1500.0, 0.21, 0.2, 0.01, 0.0, True, 0.0005,
-              (((1, 2), (0.3,)),), 37, False, 0.21, False, 0.21, False)
+              (((1, 2), (0.3,)),), 37, False, 0.21, False, 0.21, False, 1, 0.0)
     assert len(values) == len(dataclasses.fields(Prediction))
     fast, slow = _prediction(*values), Prediction(*values)
     assert type(fast) is Prediction
