@@ -891,7 +891,7 @@ def look_ahead_profile(seed, horizon_periods=2.0, n_points=3, should_stop=None):
                                           seed.nut_accel_rad_s2))
 
     def b2b(own_nm):
-        """The B2B part of a point's torque: the mean over arrangements, or its own."""
+        """Return what turns a point's own B2B torque into the mean over arrangements."""
         if seed.mean_b2b is None:
             return 0.0
         return seed.mean_b2b.at(s.axial_load_n, w) - own_nm
