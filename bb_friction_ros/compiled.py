@@ -68,7 +68,7 @@ try:
     numba = _import_numba()
     HAVE_NUMBA = True
 
-    def jit(fn=None, exact=False):
+    def jit(fn=None, exact=False, inline=False):
         """
         Compile ``fn`` with numba (no Python objects), cached on disk.
 
@@ -78,16 +78,19 @@ try:
         (``@jit(exact=True)``): no fastmath at all, for code that must round exactly as the
         numpy code it replaces (a fused multiply-add differs in the last bit).  nogil: the
         live node's input thread takes and answers inputs while the model thread is inside
-        a solve.
+        a solve.  ``inline=True``: numba inlines the function into its callers' own code (a
+        call inside a loop keeps the loop from being vectorised; LLVM's own inlining of a
+        function with several results into a loop was measured not to happen).
         """
         if fn is None:
-            return lambda f: jit(f, exact)
+            return lambda f: jit(f, exact, inline)
         return numba.njit(cache=True, error_model="numpy", nogil=True,
+                          inline="always" if inline else "never",
                           fastmath=False if exact else {"contract", "arcp", "reassoc"})(fn)
 except ImportError:        # pragma: no cover - numba is an exec_depend
     HAVE_NUMBA = False
 
-    def jit(fn=None, exact=False):
+    def jit(fn=None, exact=False, inline=False):
         """Without numba: the plain Python function."""
         if fn is None:
             return lambda f: f

@@ -61,121 +61,170 @@ _LAST_FACTOR = 5e2
 _FIRST_FACTOR = 5e1
 
 
+# --- The evaluation laid out for the vector units -------------------------------------------
+#
+# ``evaluate_lanes`` runs as passes over the balls, one contact type at a time, each pass a
+# loop over the balls (the vector lanes) without calls or early exits, so that LLVM
+# vectorises it: the contact geometry and loads (``_contact_loads``, compiled without
+# fastmath: the loads are bit for bit the numpy model's), the slip kinematics and the map
+# coordinates (``_contact_kinematics``), the friction map's patches (``_contact_maps``,
+# scalar: a table lookup per contact, which the vectoriser would do with gathers, slow on
+# this CPU), the forces and moments (``_contact_forces``) and the Jacobian
+# (``_contact_jacobian``).  An open contact (delta <= 0) runs through every pass with q = 0
+# and finite normals and adds exact zeros, as the scalar loop that skipped it did.
+#
+# The work arrays are flat, one row of _CHUNK lanes per quantity (and contact type), balls
+# taken _CHUNK at a time: with rows a compile-time constant apart, LLVM sees that the rows
+# of one array never overlap, so a pass needs no run-time alias checks (with the rows a
+# run-time N apart it needed more than its limit allows and stayed scalar, measured).
+
+_CHUNK = 64         # balls per pass (lanes); N = 37 is one chunk
+# Rows of ev (contact type k, row r: ev[(k * 6 + r) * _CHUNK + lane]): the contact.
+_NX, _NZ, _DIST, _Q, _SQ, _POS = 0, 1, 2, 3, 4, 5
+# Rows of ek (the same layout): the ellipse, slip, spin and map coordinates.
+_A, _AS, _RX, _RY, _RHO, _S, _W, _SX, _SY = 0, 1, 2, 3, 4, 5, 6, 7, 8
+# Rows of em: the map's fx, fy, m, p (0..3), their t- (4..7) and h-derivatives (8..11).
+_VAL = 0
+_DVT = 4
+_DVH = 8
+# Rows of acc (per ball: acc[row * _CHUNK + lane]): terms 0..8, then per column j of the
+# Jacobian (j = 0..6) jac[r, j] at 9 + 7 j + r and dax[j] at 9 + 7 j + 6.  Rows of pco:
+# per contact type k its loss (2 k) and axial force (2 k + 1).
+_ACC_JAC = 9
+_ACC_ROWS = 58
+# One work array: ev (6 rows), ek (9), em (12) per contact type, acc, pco (8).  Each pass
+# writes other arrays than it reads (else LLVM must check at run time whether a row it
+# writes is one it reads, and gave up: measured).
+# The passes' inputs are copied into xin first: rows x[:, j] (j = 0..5), the nut
+# displacement u + u_ball (6), the arc centres' xi (7 + k) and zeta (11 + k): a pass that
+# read x or the centres in place did not vectorise ("unsafe indirect dependence").
+_XIN_U, _XIN_CX, _XIN_CZ = 6, 7, 11
+_EV_BLOCK = 6 * _CHUNK
+_EK_BLOCK = 9 * _CHUNK
+_EM_BLOCK = 12 * _CHUNK
+_EK_OFF = 4 * _EV_BLOCK
+_EM_OFF = _EK_OFF + 4 * _EK_BLOCK
+_ACC_OFF = _EM_OFF + 4 * _EM_BLOCK
+_PCO_OFF = _ACC_OFF + _ACC_ROWS * _CHUNK
+_XIN_OFF = _PCO_OFF + 8 * _CHUNK
+WORK_SIZE = _XIN_OFF + 15 * _CHUNK
+
+# atan2 as a polynomial the vectoriser can inline (libm's atan2 is a call per contact, and
+# numba has no vector math library here: SVML is not operational).  Cephes' atan: on
+# [0, 0.66] z + z^3 P(z^2) / Q(z^2), above that pi/4 + atan((z - 1) / (z + 1)); the other
+# octants by symmetry.  Against libm over all quadrants and ratios 1e-8..1e8: at most 2 ulp
+# of the result, so at most 4.5e-16 rad (tested in test_kernel_lanes).
+_AT_P = (-8.750608600031904122785e-01, -1.615753718733365076637e+01,
+         -7.500855792314704667340e+01, -1.228866684490136173410e+02,
+         -6.485021904942025371773e+01)
+_AT_Q = (2.485846490142306297962e+01, 1.650270098316988542046e+02,
+         4.328810604912902668951e+02, 4.853903996359136964868e+02,
+         1.945506571482613964425e+02)
+_AT_MOREBITS = 6.123233995736765886130e-17
+_HALF_PI = 0.5 * math.pi
+_QUARTER_PI = 0.25 * math.pi
+
+
 @_jit
-def _map_eval(coef, t, h, n_pol, n_az, dtm, dhm, val, dvt, dvh, deriv):
-    """
-    Bicubic patch of FrictionMapSphere at (t, h): values and (``deriv``) t-, h-derivatives.
-
-    h in (-pi, pi] (an atan2).
-    """
-    if t < 0.0:
-        t = 0.0
-    elif t > math.pi:
-        t = math.pi
-    xx = t / dtm
-    i0 = int(xx)
-    if i0 > n_pol - 1:
-        i0 = n_pol - 1
-    sx = xx - i0
-    # h mod 2 pi for h in (-pi, pi], as the modulo rounds it, without its fmod.
-    yy = (h + _TWO_PI if h < 0.0 else h) / dhm
-    j0 = int(yy)
-    if j0 > n_az - 1:
-        j0 = n_az - 1
-    sy = yy - j0
-    cell = i0 * n_az + j0
-    sy2 = sy * sy
-    sy3 = sy2 * sy
-    sx2 = sx * sx
-    sx3 = sx2 * sx
-    for o in range(4):
-        b = 4 * o
-        # Power j of s_h at coef[cell, j, 4 o + i]; then the polynomial in s_t (power i).
-        c = coef[cell]
-        qv0 = c[0, b] + c[1, b] * sy + c[2, b] * sy2 + c[3, b] * sy3
-        qv1 = c[0, b + 1] + c[1, b + 1] * sy + c[2, b + 1] * sy2 + c[3, b + 1] * sy3
-        qv2 = c[0, b + 2] + c[1, b + 2] * sy + c[2, b + 2] * sy2 + c[3, b + 2] * sy3
-        qv3 = c[0, b + 3] + c[1, b + 3] * sy + c[2, b + 3] * sy2 + c[3, b + 3] * sy3
-        val[o] = qv0 + qv1 * sx + qv2 * sx2 + qv3 * sx3
-        if not deriv:
-            continue
-        qd0 = c[1, b] + 2.0 * c[2, b] * sy + 3.0 * c[3, b] * sy2
-        qd1 = c[1, b + 1] + 2.0 * c[2, b + 1] * sy + 3.0 * c[3, b + 1] * sy2
-        qd2 = c[1, b + 2] + 2.0 * c[2, b + 2] * sy + 3.0 * c[3, b + 2] * sy2
-        qd3 = c[1, b + 3] + 2.0 * c[2, b + 3] * sy + 3.0 * c[3, b + 3] * sy2
-        dvt[o] = (qv1 + 2.0 * qv2 * sx + 3.0 * qv3 * sx2) / dtm
-        dvh[o] = (qd0 + qd1 * sx + qd2 * sx2 + qd3 * sx3) / dhm
+def atan2_poly(y, x):
+    """atan2(y, x) [rad] without a libm call, within 2 ulp of it (vectorisable)."""
+    ax = abs(x)
+    ay = abs(y)
+    swap = ay > ax
+    num = ax if swap else ay
+    den = ay if swap else ax
+    z = num / den if den > 0.0 else 0.0
+    red = z > 0.66
+    zz = (z - 1.0) / (z + 1.0) if red else z
+    z2 = zz * zz
+    p = (((_AT_P[0] * z2 + _AT_P[1]) * z2 + _AT_P[2]) * z2 + _AT_P[3]) * z2 + _AT_P[4]
+    q = ((((z2 + _AT_Q[0]) * z2 + _AT_Q[1]) * z2 + _AT_Q[2]) * z2 + _AT_Q[3]) * z2 + _AT_Q[4]
+    r = zz * (z2 * p / q) + zz
+    r = _QUARTER_PI + (r + 0.5 * _AT_MOREBITS) if red else r
+    r = _HALF_PI - r + _AT_MOREBITS if swap else r
+    r = math.pi - r if x < 0.0 else r
+    return -r if y < 0.0 else r
 
 
-@_jit
-def evaluate_balls(x, u, u_ball, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
-                   grid, scale, want_jac, res, jac, dax, terms, per_contact):
-    """
-    Ball-groove residuals of all balls (``single_ball.BallGrooveModel.evaluate``).
+# glibc's hypot (2.35 on; dbl-64 without FMA, the x86-64 build): a scaled sqrt plus one
+# correction step.  Written out so that it vectorises; compiled without fastmath it rounds
+# exactly as libm, which numpy's np.hypot calls, so the contact loads stay bit for bit the
+# numpy model's (test_fast_solver; test_kernel_lanes against libm).
+_HYPOT_LARGE = 2.0 ** 511
+_HYPOT_TINY = 2.0 ** -511
+_HYPOT_SCALE = 2.0 ** -600
+_HYPOT_EPS = 2.0 ** -54
 
-    The nut displacement at ball i is u + u_ball[i] (u_ball = 0 for a rigid nut and shaft;
-    the elastic load distribution gives each ball its own).
-    cst = (lambda, R_B, cos a, sin a, l, mu, free distance, r_gear); grid = (n_polar,
-    n_azimuth, dt, dh).  Writes res (N, 6) = [force, moment / R_B] / scale, jac (N, 6, 7),
-    dax (N, 7) = d(axial) / scale; terms (N, 10) = force (3), moment (3), loss, nut torque,
-    axial force, 0; per_contact (N, 4, 3) = load, loss and the contact angle, which only
-    ``contact_angles`` writes, on demand (no output of the model reads it: 148 atan2 per
-    solve at N = 37, so ``newton`` does not compute it).  Returns the summed axial force [N].
-    """
-    lam, r_b, ca, sa, ell, mu, free, r_gear = (cst[0], cst[1], cst[2], cst[3], cst[4],
-                                               cst[5], cst[6], cst[7])
-    n_pol, n_az = int(grid[0]), int(grid[1])
-    dtm, dhm = grid[2], grid[3]
-    val = np.empty(4)
-    dvt = np.empty(4)
-    dvh = np.empty(4)
-    d6 = np.empty(6)
-    inv_s = 1.0 / scale
-    inv_rs = 1.0 / (r_b * scale)
-    axial_sum = 0.0
-    nb = x.shape[0]
-    # a = k_axis q^(1/3) with q = k_load delta^(3/2) is k_axis k_load^(1/3) sqrt(delta): one
-    # cbrt per contact type here instead of one per contact and evaluation (measured: the
-    # transcendental calls are most of an evaluation without the Jacobian).
-    ka_kl = np.empty(4)
+
+@_jit(exact=True)
+def hypot_exact(x, y):
+    """sqrt(x^2 + y^2) rounded as glibc's hypot (finite x, y), without a call."""
+    ax = max(abs(x), abs(y))
+    ay = min(abs(x), abs(y))
+    tiny = ay < _HYPOT_TINY
+    s = _HYPOT_SCALE if ax > _HYPOT_LARGE else (1.0 / _HYPOT_SCALE if tiny else 1.0)
+    a = ax * s
+    b = ay * s
+    h = math.sqrt(a * a + b * b)
+    if h <= 2.0 * b:
+        d = h - b
+        t1 = a * (2.0 * d - a)
+        t2 = (d - 2.0 * (a - b)) * d
+    else:
+        d = h - a
+        t1 = 2.0 * d * (a - 2.0 * b)
+        t2 = (4.0 * d - b) * b + d * d
+    h = (h - (t1 + t2) / (2.0 * h)) / s
+    small = (ax >= ay / _HYPOT_EPS) if tiny else (ay <= ax * _HYPOT_EPS)
+    return ax + ay if small else h
+
+
+@_jit(exact=True)
+def _contact_loads(xin, m, lam, ca, free, on_nut, k_load, ev):
+    """Normals, distances and loads of balls 0..m-1 (numpy's rounding); open: q = 0."""
     for k in range(4):
-        ka_kl[k] = k_axis[k] * np.cbrt(k_load[k])
-    for i in range(nb):
-        x0, x1, wb, ox, oy, oz = x[i, 0], x[i, 1], x[i, 2], x[i, 3], x[i, 4], x[i, 5]
-        ui = u + u_ball[i]
-        for r in range(10):
-            terms[i, r] = 0.0
-        for r in range(6):
-            res[i, r] = 0.0
-        if want_jac:
-            for r in range(6):
-                for j in range(7):
-                    jac[i, r, j] = 0.0
-            for j in range(7):
-                dax[i, j] = 0.0
-        for k in range(4):
-            g = on_nut[k]
-            gs = g * sign
-            kl = k_load[k]
-            ka = k_axis[k]
-            dxv = lam * x0 - centres[i, k, 0]
-            dzv = lam * x1 - centres[i, k, 1] - g * (lam * ca * ui)
-            dist = math.hypot(dxv, dzv)
-            nx = dxv / dist
-            nz = dzv / dist
+        evk = ev[k * _EV_BLOCK:(k + 1) * _EV_BLOCK]
+        cx = xin[(_XIN_CX + k) * _CHUNK:(_XIN_CX + k + 1) * _CHUNK]
+        cz = xin[(_XIN_CZ + k) * _CHUNK:(_XIN_CZ + k + 1) * _CHUNK]
+        g = on_nut[k]
+        kl = k_load[k]
+        for i in range(m):
+            dxv = lam * xin[i] - cx[i]
+            dzv = (lam * xin[_CHUNK + i] - cz[i]
+                   - g * (lam * ca * xin[_XIN_U * _CHUNK + i]))
+            dist = hypot_exact(dxv, dzv)
             delta = dist - free
             pos = delta > 0.0
-            if not pos:
-                # An open contact (q = 0) adds exact zeros to every residual and Jacobian
-                # entry (all terms carry q, mu q or dq = 0): skip its friction map (a quarter
-                # of the contacts without preload: 25 % of an evaluation, measured).
-                per_contact[i, k, 0] = 0.0
-                per_contact[i, k, 1] = 0.0
-                continue
-            dpos = delta
+            dpos = delta if pos else 0.0
             sq = math.sqrt(dpos)
-            q = kl * dpos * sq
-            a = ka_kl[k] * sq
+            # An open contact keeps finite normals: every term it adds is then an exact zero.
+            evk[_NX * _CHUNK + i] = dxv / dist if pos else 0.0
+            evk[_NZ * _CHUNK + i] = dzv / dist if pos else 0.0
+            evk[_DIST * _CHUNK + i] = dist if pos else 1.0
+            evk[_Q * _CHUNK + i] = kl * dpos * sq
+            evk[_SQ * _CHUNK + i] = sq
+            evk[_POS * _CHUNK + i] = 1.0 if pos else 0.0
+
+
+@_jit
+def _contact_kinematics(xin, m, r_b, sa, ca, ell, sign, on_nut, k_load, k_axis, dtm, dhm,
+                        ev, ek):
+    """Contact ellipse, slip, spin and the friction map's coordinates (t, h) per contact."""
+    for k in range(4):
+        evk = ev[k * _EV_BLOCK:(k + 1) * _EV_BLOCK]
+        ekk = ek[k * _EK_BLOCK:(k + 1) * _EK_BLOCK]
+        gs = on_nut[k] * sign
+        ka = k_axis[k]
+        # a = k_axis q^(1/3) = k_axis k_load^(1/3) sqrt(delta): one cbrt per contact type.
+        ka_kl = ka * np.cbrt(k_load[k])
+        for i in range(m):
+            nx = evk[_NX * _CHUNK + i]
+            nz = evk[_NZ * _CHUNK + i]
+            wb = xin[2 * _CHUNK + i]
+            ox = xin[3 * _CHUNK + i]
+            oy = xin[4 * _CHUNK + i]
+            oz = xin[5 * _CHUNK + i]
+            a = ka_kl * evk[_SQ * _CHUNK + i]
             a_s = max(a, ka * 1e-9)
             vx = r_b * (oy - gs * sa)
             vy = wb * ell + r_b * (oz * nx - ox * nz) - gs * (ell + r_b * ca * nx)
@@ -183,14 +232,94 @@ def evaluate_balls(x, u, u_ball, centres, sign, cst, k_load, k_axis, on_nut, coe
             rx = vx / a_s
             ry = vy / a_s
             rho = max(math.sqrt(rx * rx + ry * ry), _TINY)
-            s = math.sqrt(rho * rho + w * w)
-            t = math.atan2(rho, w)
-            h = math.atan2(ry, rx)
-            if k < 2:
-                _map_eval(coef_s, t, h, n_pol, n_az, dtm, dhm, val, dvt, dvh, want_jac)
-            else:
-                _map_eval(coef_n, t, h, n_pol, n_az, dtm, dhm, val, dvt, dvh, want_jac)
-            fx, fy, mm, pp = val[0], val[1], val[2], val[3]
+            t = atan2_poly(rho, w)
+            h = atan2_poly(ry, rx)
+            ekk[_A * _CHUNK + i] = a
+            ekk[_AS * _CHUNK + i] = a_s
+            ekk[_RX * _CHUNK + i] = rx
+            ekk[_RY * _CHUNK + i] = ry
+            ekk[_RHO * _CHUNK + i] = rho
+            ekk[_S * _CHUNK + i] = math.sqrt(rho * rho + w * w)
+            ekk[_W * _CHUNK + i] = w
+            # The map's cell coordinates, NaN-safe: t clamped to [0, pi]; h mod 2 pi for h in
+            # (-pi, pi], as the modulo rounds it, without its fmod.
+            t = t if t >= 0.0 else 0.0
+            t = math.pi if t > math.pi else t
+            ekk[_SX * _CHUNK + i] = t / dtm
+            yy = (h + _TWO_PI if h < 0.0 else h) / dhm
+            ekk[_SY * _CHUNK + i] = yy if yy >= 0.0 else 0.0
+
+
+@_jit
+def _contact_maps(coef_s, coef_n, m, n_pol, n_az, dtm, dhm, want_jac, ev, ek, em):
+    """Bicubic patch of FrictionMapSphere at every loaded contact: values, t-, h-derivatives."""
+    for k in range(4):
+        evk = ev[k * _EV_BLOCK:(k + 1) * _EV_BLOCK]
+        ekk = ek[k * _EK_BLOCK:(k + 1) * _EK_BLOCK]
+        emk = em[k * _EM_BLOCK:(k + 1) * _EM_BLOCK]
+        coef = coef_s if k < 2 else coef_n
+        for i in range(m):
+            if evk[_POS * _CHUNK + i] == 0.0:
+                for r in range(12):
+                    emk[(_VAL + r) * _CHUNK + i] = 0.0
+                continue
+            xx = ekk[_SX * _CHUNK + i]
+            i0 = int(xx)
+            if i0 > n_pol - 1:
+                i0 = n_pol - 1
+            sx = xx - i0
+            yy = ekk[_SY * _CHUNK + i]
+            j0 = int(yy)
+            if j0 > n_az - 1:
+                j0 = n_az - 1
+            sy = yy - j0
+            c = coef[i0 * n_az + j0]
+            sy2 = sy * sy
+            sy3 = sy2 * sy
+            sx2 = sx * sx
+            sx3 = sx2 * sx
+            for o in range(4):
+                # Power j of s_h at c[j, 4 o + i]; then the polynomial in s_t (power i).
+                b = 4 * o
+                qv0 = c[0, b] + c[1, b] * sy + c[2, b] * sy2 + c[3, b] * sy3
+                qv1 = c[0, b + 1] + c[1, b + 1] * sy + c[2, b + 1] * sy2 + c[3, b + 1] * sy3
+                qv2 = c[0, b + 2] + c[1, b + 2] * sy + c[2, b + 2] * sy2 + c[3, b + 2] * sy3
+                qv3 = c[0, b + 3] + c[1, b + 3] * sy + c[2, b + 3] * sy2 + c[3, b + 3] * sy3
+                emk[(_VAL + o) * _CHUNK + i] = qv0 + qv1 * sx + qv2 * sx2 + qv3 * sx3
+                if not want_jac:
+                    continue
+                qd0 = c[1, b] + 2.0 * c[2, b] * sy + 3.0 * c[3, b] * sy2
+                qd1 = c[1, b + 1] + 2.0 * c[2, b + 1] * sy + 3.0 * c[3, b + 1] * sy2
+                qd2 = c[1, b + 2] + 2.0 * c[2, b + 2] * sy + 3.0 * c[3, b + 2] * sy2
+                qd3 = c[1, b + 3] + 2.0 * c[2, b + 3] * sy + 3.0 * c[3, b + 3] * sy2
+                dv_t = (qv1 + 2.0 * qv2 * sx + 3.0 * qv3 * sx2) / dtm
+                dv_h = (qd0 + qd1 * sx + qd2 * sx2 + qd3 * sx3) / dhm
+                emk[(_DVT + o) * _CHUNK + i] = dv_t
+                emk[(_DVH + o) * _CHUNK + i] = dv_h
+
+
+@_jit
+def _contact_forces(m, r_b, sa, ca, ell, mu, r_gear, on_nut, ev, ek, em, acc, pco):
+    """Forces, moments, loss, nut torque and axial force of the contacts, summed per ball."""
+    for r in range(9):
+        for i in range(m):
+            acc[r * _CHUNK + i] = 0.0
+    for k in range(4):
+        evk = ev[k * _EV_BLOCK:(k + 1) * _EV_BLOCK]
+        ekk = ek[k * _EK_BLOCK:(k + 1) * _EK_BLOCK]
+        emk = em[k * _EM_BLOCK:(k + 1) * _EM_BLOCK]
+        pcok = pco[k * 2 * _CHUNK:(k + 1) * 2 * _CHUNK]
+        g = on_nut[k]
+        for i in range(m):
+            pos = evk[_POS * _CHUNK + i] != 0.0
+            nx = evk[_NX * _CHUNK + i]
+            nz = evk[_NZ * _CHUNK + i]
+            q = evk[_Q * _CHUNK + i]
+            a = ekk[_A * _CHUNK + i]
+            fx = emk[_VAL * _CHUNK + i]
+            fy = emk[(_VAL + 1) * _CHUNK + i]
+            mm = emk[(_VAL + 2) * _CHUNK + i]
+            pp = emk[(_VAL + 3) * _CHUNK + i]
             p_ = mu * q
             am = a * mm
             f0 = -q * nx + p_ * fx * nz
@@ -199,92 +328,351 @@ def evaluate_balls(x, u, u_ball, centres, sign, cst, k_load, k_axis, on_nut, coe
             m0 = p_ * (-r_b * fy * nz + am * nx)
             m1 = p_ * r_b * fx
             m2 = p_ * (r_b * fy * nx + am * nz)
-            loss_c = p_ * a * s * pp
+            loss_c = p_ * a * ekk[_S * _CHUNK + i] * pp
             torque_c = g * (f0 * (r_b * sa * nz) + f1 * (ell - r_gear * sa + r_b * ca * nx)
                             + f2 * (-r_gear * ca - r_b * sa * nx) + p_ * am * nz * ca)
             axial_c = g * (f1 * sa + f2 * ca)
-            terms[i, 0] += f0
-            terms[i, 1] += f1
-            terms[i, 2] += f2
-            terms[i, 3] += m0
-            terms[i, 4] += m1
-            terms[i, 5] += m2
-            terms[i, 6] += loss_c
-            terms[i, 7] += torque_c
-            terms[i, 8] += axial_c
-            per_contact[i, k, 0] = q
-            per_contact[i, k, 1] = loss_c
-            axial_sum += axial_c
-            if not want_jac:
-                continue
-            a_over_3q = a / (3.0 * q) if (pos and q > 0.0) else 0.0
-            inv_dist = 1.0 / dist
-            inv_as = 1.0 / a_s
+            pcok[i] = loss_c if pos else 0.0
+            pcok[_CHUNK + i] = axial_c if pos else 0.0
+            acc[i] += f0 if pos else 0.0
+            acc[_CHUNK + i] += f1 if pos else 0.0
+            acc[2 * _CHUNK + i] += f2 if pos else 0.0
+            acc[3 * _CHUNK + i] += m0 if pos else 0.0
+            acc[4 * _CHUNK + i] += m1 if pos else 0.0
+            acc[5 * _CHUNK + i] += m2 if pos else 0.0
+            acc[6 * _CHUNK + i] += loss_c if pos else 0.0
+            acc[7 * _CHUNK + i] += torque_c if pos else 0.0
+            acc[8 * _CHUNK + i] += axial_c if pos else 0.0
+
+
+@_jit
+def _contact_jacobian(xin, m, lam, r_b, sa, ca, ell, mu, sign, on_nut, k_load, inv_s,
+                      inv_rs, ev, ek, em, acc):
+    """
+    The contacts' derivatives of the scaled residual and axial force, summed per ball.
+
+    The six state columns written out (a loop over them inside the loop over the balls kept
+    that loop from being the innermost one, so it stayed scalar: measured), each as the
+    scalar loop's expression with the terms of the rate columns that are exact zeros
+    (dq = da = dn = 0) left out.
+    """
+    for r in range(_ACC_JAC, _ACC_ROWS):
+        for i in range(m):
+            acc[r * _CHUNK + i] = 0.0
+    for k in range(4):
+        evk = ev[k * _EV_BLOCK:(k + 1) * _EV_BLOCK]
+        ekk = ek[k * _EK_BLOCK:(k + 1) * _EK_BLOCK]
+        emk = em[k * _EM_BLOCK:(k + 1) * _EM_BLOCK]
+        g = on_nut[k]
+        gs = g * sign
+        kl = k_load[k]
+        cu = -g * ca
+        for i in range(m):
+            pos = evk[_POS * _CHUNK + i] != 0.0
+            nx = evk[_NX * _CHUNK + i]
+            nz = evk[_NZ * _CHUNK + i]
+            q = evk[_Q * _CHUNK + i]
+            sq = evk[_SQ * _CHUNK + i]
+            a = ekk[_A * _CHUNK + i]
+            rx = ekk[_RX * _CHUNK + i]
+            ry = ekk[_RY * _CHUNK + i]
+            rho = ekk[_RHO * _CHUNK + i]
+            s = ekk[_S * _CHUNK + i]
+            w = ekk[_W * _CHUNK + i]
+            fx = emk[_VAL * _CHUNK + i]
+            fy = emk[(_VAL + 1) * _CHUNK + i]
+            mm = emk[(_VAL + 2) * _CHUNK + i]
+            t_fx = emk[_DVT * _CHUNK + i]
+            t_fy = emk[(_DVT + 1) * _CHUNK + i]
+            t_mm = emk[(_DVT + 2) * _CHUNK + i]
+            h_fx = emk[_DVH * _CHUNK + i]
+            h_fy = emk[(_DVH + 1) * _CHUNK + i]
+            h_mm = emk[(_DVH + 2) * _CHUNK + i]
+            ox = xin[3 * _CHUNK + i]
+            oz = xin[5 * _CHUNK + i]
+            p_ = mu * q
+            am = a * mm
+            a_over_3q = a / (3.0 * q) if q > 0.0 else 0.0
+            inv_dist = 1.0 / evk[_DIST * _CHUNK + i]
+            inv_as = 1.0 / ekk[_AS * _CHUNK + i]
             inv_ss = 1.0 / (s * s)
             inv_rr = 1.0 / (rho * rho)
+            # Column xi: through the normal, the load and the ellipse.
+            dn_l = nx * lam
+            dnx = (lam - nx * dn_l) * inv_dist
+            dnz = -nz * dn_l * inv_dist
+            dq = 1.5 * kl * sq * dn_l
+            da = a_over_3q * dq
+            dvy = r_b * (oz - gs * ca) * dnx - r_b * ox * dnz
+            dw = ox * dnx + (oz - gs * ca) * dnz
+            drx = -rx * da * inv_as
+            dry = (dvy - ry * da) * inv_as
+            dt = (w * (rx * drx + ry * dry) / rho - rho * dw) * inv_ss
+            dh = (rx * dry - ry * drx) * inv_rr
+            dfx = t_fx * dt + h_fx * dh
+            dfy = t_fy * dt + h_fy * dh
+            dmm = t_mm * dt + h_mm * dh
+            dp_ = mu * dq
+            dam = mm * da + a * dmm
+            d_fx = -dq * nx - q * dnx + dp_ * fx * nz + p_ * nz * dfx + p_ * fx * dnz
+            d_fy = dp_ * fy + p_ * dfy
+            d_fz = -dq * nz - q * dnz - dp_ * fx * nx - p_ * nx * dfx - p_ * fx * dnx
+            d_mx = (dp_ * (-r_b * fy * nz + am * nx)
+                    + p_ * (-r_b * (dfy * nz + fy * dnz) + dam * nx + am * dnx))
+            d_my = r_b * (dp_ * fx + p_ * dfx)
+            d_mz = (dp_ * (r_b * fy * nx + am * nz)
+                    + p_ * (r_b * (dfy * nx + fy * dnx) + dam * nz + am * dnz))
+            d0 = d_fx * inv_s if pos else 0.0
+            d1 = d_fy * inv_s if pos else 0.0
+            d2 = d_fz * inv_s if pos else 0.0
+            d3 = d_mx * inv_rs if pos else 0.0
+            d4 = d_my * inv_rs if pos else 0.0
+            d5 = d_mz * inv_rs if pos else 0.0
+            d_ax = g * (d_fy * sa + d_fz * ca) * inv_s if pos else 0.0
+            acc[9 * _CHUNK + i] += d0
+            acc[10 * _CHUNK + i] += d1
+            acc[11 * _CHUNK + i] += d2
+            acc[12 * _CHUNK + i] += d3
+            acc[13 * _CHUNK + i] += d4
+            acc[14 * _CHUNK + i] += d5
+            acc[15 * _CHUNK + i] += d_ax
+            # Column zeta (and u).
+            dn_l = nz * lam
+            dnx = -nx * dn_l * inv_dist
+            dnz = (lam - nz * dn_l) * inv_dist
+            dq = 1.5 * kl * sq * dn_l
+            da = a_over_3q * dq
+            dvy = r_b * (oz - gs * ca) * dnx - r_b * ox * dnz
+            dw = ox * dnx + (oz - gs * ca) * dnz
+            drx = -rx * da * inv_as
+            dry = (dvy - ry * da) * inv_as
+            dt = (w * (rx * drx + ry * dry) / rho - rho * dw) * inv_ss
+            dh = (rx * dry - ry * drx) * inv_rr
+            dfx = t_fx * dt + h_fx * dh
+            dfy = t_fy * dt + h_fy * dh
+            dmm = t_mm * dt + h_mm * dh
+            dp_ = mu * dq
+            dam = mm * da + a * dmm
+            d_fx = -dq * nx - q * dnx + dp_ * fx * nz + p_ * nz * dfx + p_ * fx * dnz
+            d_fy = dp_ * fy + p_ * dfy
+            d_fz = -dq * nz - q * dnz - dp_ * fx * nx - p_ * nx * dfx - p_ * fx * dnx
+            d_mx = (dp_ * (-r_b * fy * nz + am * nx)
+                    + p_ * (-r_b * (dfy * nz + fy * dnz) + dam * nx + am * dnx))
+            d_my = r_b * (dp_ * fx + p_ * dfx)
+            d_mz = (dp_ * (r_b * fy * nx + am * nz)
+                    + p_ * (r_b * (dfy * nx + fy * dnx) + dam * nz + am * dnz))
+            d0 = d_fx * inv_s if pos else 0.0
+            d1 = d_fy * inv_s if pos else 0.0
+            d2 = d_fz * inv_s if pos else 0.0
+            d3 = d_mx * inv_rs if pos else 0.0
+            d4 = d_my * inv_rs if pos else 0.0
+            d5 = d_mz * inv_rs if pos else 0.0
+            d_ax = g * (d_fy * sa + d_fz * ca) * inv_s if pos else 0.0
+            acc[16 * _CHUNK + i] += d0
+            acc[17 * _CHUNK + i] += d1
+            acc[18 * _CHUNK + i] += d2
+            acc[19 * _CHUNK + i] += d3
+            acc[20 * _CHUNK + i] += d4
+            acc[21 * _CHUNK + i] += d5
+            acc[22 * _CHUNK + i] += d_ax
+            # u enters through the nut arcs' zeta shift (module docstring).
+            acc[51 * _CHUNK + i] += cu * d0
+            acc[52 * _CHUNK + i] += cu * d1
+            acc[53 * _CHUNK + i] += cu * d2
+            acc[54 * _CHUNK + i] += cu * d3
+            acc[55 * _CHUNK + i] += cu * d4
+            acc[56 * _CHUNK + i] += cu * d5
+            acc[57 * _CHUNK + i] += cu * d_ax
+            # Columns w_B, Omega_x, Omega_y, Omega_z: the velocities only (dq = da = 0).
+            dry = ell * inv_as
+            dt = w * (ry * dry) / rho * inv_ss
+            dh = (rx * dry) * inv_rr
+            dfx = t_fx * dt + h_fx * dh
+            dfy = t_fy * dt + h_fy * dh
+            dmm = t_mm * dt + h_mm * dh
+            dam = a * dmm
+            d_fx = p_ * nz * dfx
+            d_fy = p_ * dfy
+            d_fz = -p_ * nx * dfx
+            d_mx = p_ * (-r_b * dfy * nz + dam * nx)
+            d_my = r_b * p_ * dfx
+            d_mz = p_ * (r_b * dfy * nx + dam * nz)
+            d0 = d_fx * inv_s if pos else 0.0
+            d1 = d_fy * inv_s if pos else 0.0
+            d2 = d_fz * inv_s if pos else 0.0
+            d3 = d_mx * inv_rs if pos else 0.0
+            d4 = d_my * inv_rs if pos else 0.0
+            d5 = d_mz * inv_rs if pos else 0.0
+            d_ax = g * (d_fy * sa + d_fz * ca) * inv_s if pos else 0.0
+            acc[23 * _CHUNK + i] += d0
+            acc[24 * _CHUNK + i] += d1
+            acc[25 * _CHUNK + i] += d2
+            acc[26 * _CHUNK + i] += d3
+            acc[27 * _CHUNK + i] += d4
+            acc[28 * _CHUNK + i] += d5
+            acc[29 * _CHUNK + i] += d_ax
+            dry = -r_b * nz * inv_as
+            dt = (w * (ry * dry) / rho - rho * nx) * inv_ss
+            dh = (rx * dry) * inv_rr
+            dfx = t_fx * dt + h_fx * dh
+            dfy = t_fy * dt + h_fy * dh
+            dmm = t_mm * dt + h_mm * dh
+            dam = a * dmm
+            d_fx = p_ * nz * dfx
+            d_fy = p_ * dfy
+            d_fz = -p_ * nx * dfx
+            d_mx = p_ * (-r_b * dfy * nz + dam * nx)
+            d_my = r_b * p_ * dfx
+            d_mz = p_ * (r_b * dfy * nx + dam * nz)
+            d0 = d_fx * inv_s if pos else 0.0
+            d1 = d_fy * inv_s if pos else 0.0
+            d2 = d_fz * inv_s if pos else 0.0
+            d3 = d_mx * inv_rs if pos else 0.0
+            d4 = d_my * inv_rs if pos else 0.0
+            d5 = d_mz * inv_rs if pos else 0.0
+            d_ax = g * (d_fy * sa + d_fz * ca) * inv_s if pos else 0.0
+            acc[30 * _CHUNK + i] += d0
+            acc[31 * _CHUNK + i] += d1
+            acc[32 * _CHUNK + i] += d2
+            acc[33 * _CHUNK + i] += d3
+            acc[34 * _CHUNK + i] += d4
+            acc[35 * _CHUNK + i] += d5
+            acc[36 * _CHUNK + i] += d_ax
+            drx = r_b * inv_as
+            dt = w * (rx * drx) / rho * inv_ss
+            dh = (-ry * drx) * inv_rr
+            dfx = t_fx * dt + h_fx * dh
+            dfy = t_fy * dt + h_fy * dh
+            dmm = t_mm * dt + h_mm * dh
+            dam = a * dmm
+            d_fx = p_ * nz * dfx
+            d_fy = p_ * dfy
+            d_fz = -p_ * nx * dfx
+            d_mx = p_ * (-r_b * dfy * nz + dam * nx)
+            d_my = r_b * p_ * dfx
+            d_mz = p_ * (r_b * dfy * nx + dam * nz)
+            d0 = d_fx * inv_s if pos else 0.0
+            d1 = d_fy * inv_s if pos else 0.0
+            d2 = d_fz * inv_s if pos else 0.0
+            d3 = d_mx * inv_rs if pos else 0.0
+            d4 = d_my * inv_rs if pos else 0.0
+            d5 = d_mz * inv_rs if pos else 0.0
+            d_ax = g * (d_fy * sa + d_fz * ca) * inv_s if pos else 0.0
+            acc[37 * _CHUNK + i] += d0
+            acc[38 * _CHUNK + i] += d1
+            acc[39 * _CHUNK + i] += d2
+            acc[40 * _CHUNK + i] += d3
+            acc[41 * _CHUNK + i] += d4
+            acc[42 * _CHUNK + i] += d5
+            acc[43 * _CHUNK + i] += d_ax
+            dry = r_b * nx * inv_as
+            dt = (w * (ry * dry) / rho - rho * nz) * inv_ss
+            dh = (rx * dry) * inv_rr
+            dfx = t_fx * dt + h_fx * dh
+            dfy = t_fy * dt + h_fy * dh
+            dmm = t_mm * dt + h_mm * dh
+            dam = a * dmm
+            d_fx = p_ * nz * dfx
+            d_fy = p_ * dfy
+            d_fz = -p_ * nx * dfx
+            d_mx = p_ * (-r_b * dfy * nz + dam * nx)
+            d_my = r_b * p_ * dfx
+            d_mz = p_ * (r_b * dfy * nx + dam * nz)
+            d0 = d_fx * inv_s if pos else 0.0
+            d1 = d_fy * inv_s if pos else 0.0
+            d2 = d_fz * inv_s if pos else 0.0
+            d3 = d_mx * inv_rs if pos else 0.0
+            d4 = d_my * inv_rs if pos else 0.0
+            d5 = d_mz * inv_rs if pos else 0.0
+            d_ax = g * (d_fy * sa + d_fz * ca) * inv_s if pos else 0.0
+            acc[44 * _CHUNK + i] += d0
+            acc[45 * _CHUNK + i] += d1
+            acc[46 * _CHUNK + i] += d2
+            acc[47 * _CHUNK + i] += d3
+            acc[48 * _CHUNK + i] += d4
+            acc[49 * _CHUNK + i] += d5
+            acc[50 * _CHUNK + i] += d_ax
+
+
+@_jit
+def evaluate_balls(x, u, u_ball, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
+                   grid, scale, want_jac, res, jac, dax, terms, per_contact):
+    """
+    Ball-groove residuals of all balls (``single_ball.BallGrooveModel.evaluate``).
+
+    ``evaluate_lanes`` with work arrays of its own (``newton`` passes its preallocated ones).
+    Returns the summed axial force [N].
+    """
+    return evaluate_lanes(x, u, u_ball, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
+                          coef_n, grid, scale, want_jac, res, jac, dax, terms, per_contact,
+                          np.empty(WORK_SIZE))
+
+
+@_jit
+def evaluate_lanes(x, u, u_ball, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
+                   grid, scale, want_jac, res, jac, dax, terms, per_contact, work):
+    """
+    Ball-groove residuals of all balls, the balls across the vector lanes.
+
+    The nut displacement at ball i is u + u_ball[i] (u_ball = 0 for a rigid nut and shaft;
+    the elastic load distribution gives each ball its own).
+    cst = (lambda, R_B, cos a, sin a, l, mu, free distance, r_gear); grid = (n_polar,
+    n_azimuth, dt, dh).  Writes res (N, 6) = [force, moment / R_B] / scale, jac (N, 6, 7),
+    dax (N, 7) = d(axial) / scale (only with ``want_jac``); terms (N, 10) = force (3),
+    moment (3), loss, nut torque, axial force, 0; per_contact (N, 4, 3) = load, loss and the
+    contact angle, which only ``contact_angles`` writes, on demand (no output of the model
+    reads it: 148 atan2 per solve at N = 37).  work (WORK_SIZE,): the passes' work arrays
+    (see above).  Returns the summed axial force [N].
+    """
+    lam, r_b, ca, sa, ell, mu, free, r_gear = (cst[0], cst[1], cst[2], cst[3], cst[4],
+                                               cst[5], cst[6], cst[7])
+    n_pol, n_az = int(grid[0]), int(grid[1])
+    dtm, dhm = grid[2], grid[3]
+    inv_s = 1.0 / scale
+    inv_rs = 1.0 / (r_b * scale)
+    axial_sum = 0.0
+    n = x.shape[0]
+    ev = work[:_EK_OFF]
+    ek = work[_EK_OFF:_EM_OFF]
+    em = work[_EM_OFF:_ACC_OFF]
+    acc = work[_ACC_OFF:_PCO_OFF]
+    pco = work[_PCO_OFF:_XIN_OFF]
+    xin = work[_XIN_OFF:]
+    for c0 in range(0, n, _CHUNK):
+        m = min(_CHUNK, n - c0)
+        for i in range(m):
+            b = c0 + i
             for j in range(6):
-                if j < 2:
-                    # Geometry (xi, zeta): through the normal, the load and the ellipse.
-                    ddx = lam if j == 0 else 0.0
-                    ddz = lam - ddx
-                    dn_l = nx * ddx + nz * ddz
-                    dnx = (ddx - nx * dn_l) * inv_dist
-                    dnz = (ddz - nz * dn_l) * inv_dist
-                    dq = 1.5 * kl * sq * dn_l
-                    da = a_over_3q * dq
-                    dvy = r_b * (oz - gs * ca) * dnx - r_b * ox * dnz
-                    dw = ox * dnx + (oz - gs * ca) * dnz
-                    drx = -rx * da * inv_as
-                    dry = (dvy - ry * da) * inv_as
-                else:
-                    # Rates (w_B, Omega): the velocities only.
-                    dnx = dnz = dq = da = 0.0
-                    dvx = dvy = dw = 0.0
-                    if j == 2:
-                        dvy = ell
-                    elif j == 3:
-                        dvy = -r_b * nz
-                        dw = nx
-                    elif j == 4:
-                        dvx = r_b
-                    else:
-                        dvy = r_b * nx
-                        dw = nz
-                    drx = dvx * inv_as
-                    dry = dvy * inv_as
-                dt = (w * (rx * drx + ry * dry) / rho - rho * dw) * inv_ss
-                dh = (rx * dry - ry * drx) * inv_rr
-                dfx = dvt[0] * dt + dvh[0] * dh
-                dfy = dvt[1] * dt + dvh[1] * dh
-                dmm = dvt[2] * dt + dvh[2] * dh
-                dp_ = mu * dq
-                dam = mm * da + a * dmm
-                d_fx = (-dq * nx - q * dnx + dp_ * fx * nz + p_ * nz * dfx + p_ * fx * dnz)
-                d_fy = dp_ * fy + p_ * dfy
-                d_fz = (-dq * nz - q * dnz - dp_ * fx * nx - p_ * nx * dfx - p_ * fx * dnx)
-                d_mx = (dp_ * (-r_b * fy * nz + am * nx)
-                        + p_ * (-r_b * (dfy * nz + fy * dnz) + dam * nx + am * dnx))
-                d_my = r_b * (dp_ * fx + p_ * dfx)
-                d_mz = (dp_ * (r_b * fy * nx + am * nz)
-                        + p_ * (r_b * (dfy * nx + fy * dnx) + dam * nz + am * dnz))
-                d6[0] = d_fx * inv_s
-                d6[1] = d_fy * inv_s
-                d6[2] = d_fz * inv_s
-                d6[3] = d_mx * inv_rs
-                d6[4] = d_my * inv_rs
-                d6[5] = d_mz * inv_rs
-                d_ax = g * (d_fy * sa + d_fz * ca) * inv_s
-                for r in range(6):
-                    jac[i, r, j] += d6[r]
-                dax[i, j] += d_ax
-                if j == 1 and g != 0.0:
-                    cu = -g * ca
+                xin[j * _CHUNK + i] = x[b, j]
+            xin[_XIN_U * _CHUNK + i] = u + u_ball[b]
+            for k in range(4):
+                xin[(_XIN_CX + k) * _CHUNK + i] = centres[b, k, 0]
+                xin[(_XIN_CZ + k) * _CHUNK + i] = centres[b, k, 1]
+        _contact_loads(xin, m, lam, ca, free, on_nut, k_load, ev)
+        _contact_kinematics(xin, m, r_b, sa, ca, ell, sign, on_nut, k_load, k_axis, dtm,
+                            dhm, ev, ek)
+        _contact_maps(coef_s, coef_n, m, n_pol, n_az, dtm, dhm, want_jac, ev, ek, em)
+        _contact_forces(m, r_b, sa, ca, ell, mu, r_gear, on_nut, ev, ek, em, acc, pco)
+        if want_jac:
+            _contact_jacobian(xin, m, lam, r_b, sa, ca, ell, mu, sign, on_nut, k_load,
+                              inv_s, inv_rs, ev, ek, em, acc)
+        for i in range(m):
+            b = c0 + i
+            for k in range(4):
+                axial_sum += pco[(2 * k + 1) * _CHUNK + i]
+                per_contact[b, k, 0] = ev[(6 * k + _Q) * _CHUNK + i]
+                per_contact[b, k, 1] = pco[2 * k * _CHUNK + i]
+            for r in range(9):
+                terms[b, r] = acc[r * _CHUNK + i]
+            terms[b, 9] = 0.0
+            for r in range(3):
+                res[b, r] = acc[r * _CHUNK + i] * inv_s
+                res[b, 3 + r] = acc[(3 + r) * _CHUNK + i] * inv_rs
+            if want_jac:
+                for j in range(7):
                     for r in range(6):
-                        jac[i, r, 6] += cu * d6[r]
-                    dax[i, 6] += cu * d_ax
-        for r in range(3):
-            res[i, r] = terms[i, r] * inv_s
-            res[i, 3 + r] = terms[i, 3 + r] * inv_rs
+                        jac[b, r, j] = acc[(_ACC_JAC + 7 * j + r) * _CHUNK + i]
+                    dax[b, j] = acc[(_ACC_JAC + 7 * j + 6) * _CHUNK + i]
     return axial_sum
 
 
