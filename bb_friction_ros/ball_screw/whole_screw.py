@@ -146,6 +146,8 @@ class WholeScrew:
         self.separation = self.model.b2b.separation
         self.max_contact_load_n = self.model.max_contact_load_n()
         self.max_axial_load_n = self.model.max_axial_load_n(self.n)
+        # The compiled solve's work arrays, reused step after step (kernel.work_arrays).
+        self._work = kernel.work_arrays(self.n)
         # Fixed by the config, read at every step.
         self._preload = self.model.preload_load() > 0.0
         e, b = config.errors, self.model.ball
@@ -162,6 +164,13 @@ class WholeScrew:
                 f"{math.degrees(self.n * self.separation):.1f} deg > loop "
                 f"{math.degrees(self.loop):.1f} deg")
         self.reset()
+
+    def __copy__(self):
+        """Return a shallow copy with work arrays of its own (it may step in another thread)."""
+        new = object.__new__(type(self))
+        new.__dict__.update(self.__dict__)
+        new._work = kernel.work_arrays(self.n)
+        return new
 
     @property
     def occupancy(self):
@@ -355,7 +364,7 @@ class WholeScrew:
             self._active, *solver.kernel_constants(), scale, axial_load_n,
             *solver.b2b.linear_terms(sign), tol, st.max_iterations, st.max_step_rate,
             solver.displacement_limit(scale), st.max_active_set_changes,
-            budget if budget else -1, omega_n)
+            budget if budget else -1, omega_n, *self._work)
         ok, exhausted, iterations = out[0], out[1], int(out[2])
         if not (ok or exhausted):
             return None, iterations
@@ -424,7 +433,7 @@ class WholeScrew:
             sign, *solver.kernel_constants(), scale, axial_load_n, rear, front,
             *solver.b2b.linear_terms(sign), *path, tol, st.max_iterations,
             st.max_step_rate, solver.displacement_limit(scale), st.max_active_set_changes,
-            budget if budget else -1)
+            budget if budget else -1, *self._work)
         x, u, f_all, active, ok, exhausted, it, norm, terms, per_contact = out
         sol = Solution(x=x, u=u if elastic is not None else float(u[0]), forces=f_all * scale,
                        active=active, converged=bool(ok), iterations=int(it),
