@@ -181,7 +181,7 @@ def hypot_exact(x, y):
 
 @_jit(exact=True)
 def _contact_loads(xin, m, lam, ca, free, on_nut, k_load, ev):
-    """Normals, distances and loads of balls 0..m-1 (numpy's rounding); open: q = 0."""
+    """Compute normals, distances and loads of balls 0..m-1 (numpy's rounding); open: q = 0."""
     for k in range(4):
         evk = ev[k * _EV_BLOCK:(k + 1) * _EV_BLOCK]
         cx = xin[(_XIN_CX + k) * _CHUNK:(_XIN_CX + k + 1) * _CHUNK]
@@ -300,7 +300,7 @@ def _contact_maps(coef_s, coef_n, m, n_pol, n_az, dtm, dhm, want_jac, ev, ek, em
 
 @_jit
 def _contact_forces(m, r_b, sa, ca, ell, mu, r_gear, on_nut, ev, ek, em, acc, pco):
-    """Forces, moments, loss, nut torque and axial force of the contacts, summed per ball."""
+    """Sum the contacts' forces, moments, loss, nut torque and axial force per ball."""
     for r in range(9):
         for i in range(m):
             acc[r * _CHUNK + i] = 0.0
@@ -349,7 +349,7 @@ def _contact_forces(m, r_b, sa, ca, ell, mu, r_gear, on_nut, ev, ek, em, acc, pc
 def _contact_jacobian(xin, m, lam, r_b, sa, ca, ell, mu, sign, on_nut, k_load, inv_s,
                       inv_rs, ev, ek, em, acc):
     """
-    The contacts' derivatives of the scaled residual and axial force, summed per ball.
+    Sum the contacts' derivatives of the scaled residual and axial force per ball.
 
     The six state columns written out (a loop over them inside the loop over the balls kept
     that loop from being the innermost one, so it stayed scalar: measured), each as the
@@ -1498,7 +1498,7 @@ def elastic_direction(order, behind, ahead, wrap, rear, jac, dax, res, tr, cp, c
 
 @_jit
 def _carve(ws, off, shape):
-    """A view of ws[off:] of ``shape`` (C order) and the offset after it."""
+    """Return a view of ws[off:] of ``shape`` (C order) and the offset after it."""
     size = 1
     for d in shape:
         size *= d
@@ -1508,8 +1508,9 @@ def _carve(ws, off, shape):
 @_jit
 def _eval_arrays(ws, off, n, kc):
     """
-    Work arrays of one evaluation, views of ws from off: ``_residual`` uses 13 and u_ball
-    (the 16th, zeros), ``_elastic_residual`` the first 15.  Returns (arrays, next offset).
+    Carve the work arrays of one evaluation from ws at off: (arrays, next offset).
+
+    ``_residual`` uses 13 and u_ball (the 16th, zeros), ``_elastic_residual`` the first 15.
     """
     res, off = _carve(ws, off, (n, 6))
     jac, off = _carve(ws, off, (n, 6, 7))
