@@ -1865,28 +1865,44 @@ def warm_solve(x, u, x_prev, u_prev, f_prev, d_psi_prev, forces, ring_active, d_
     return out, iterations, speed
 
 
+# Rows of warm_step's output block (rows, N): azimuth, phi, theta, orbit ratio, omega_B,
+# axial force on the nut, B2B force per ring pair, the forces of the active pairs in chain
+# order (first ones), contact loads (4 rows).
+STEP_ROWS = 12
+
+
 @_jit(exact=True)
-def warm_step(azimuth, ratio, d_psi, track_start, sign, geo, x, u, x_prev, u_prev, f_prev,
-              d_psi_prev, forces, ring_active, cst, k_load, k_axis, on_nut, coef_s, coef_n,
-              grid, scale, axial_load_n, b_r, b_f, c_r, c_f, k_r, k_f, tol, max_it, max_rate,
-              disp_limit, max_changes, budget, omega_n, ws, wi):
+def warm_step(azimuth, ratio, x, x_prev, f_prev, forces, ring_active, par, coef_s, coef_n, ws,
+              wi, d_psi, track_start, sign, u, u_prev, d_psi_prev, scale, axial_load_n, tol,
+              max_it, max_rate, disp_limit, max_changes, budget, omega_n):
     """
     Take a whole warm step of a rigid nut without lead errors in one call (``WholeScrew.step``).
 
     ``advance``, ``warm_solve`` and ``step_totals`` in turn, with the arrays between them
     never leaving compiled code, and the step's per-ball outputs built here: the same
     arithmetic as those three calls and the numpy around them (exact, so the same rounding).
-    geo = (separation, loop length, gap tolerance, theta amplitude, cycles, phase, offset,
-    R_G - R_B, beta0); u, u_prev: the rigid nut's displacement; omega_n: the nut velocity.
-    Measured need (issue 20): the three calls and the Python around them (argument packing,
-    the Solution and its dict, the scatters) cost about 40 us of a 144 us step at N = 37.
-    Returns (converged, budget exhausted, iterations, residual norm, azimuth, phi, theta, x,
-    u, B2B force and active per ring pair, orbit ratio and omega_B per ball, contact loads
-    (N, 4), each ball's axial force on the nut, rear, front and force of the active pairs in
-    chain order, sums of the ball-groove losses, of the nut torques and of the B2B force
-    times slip speed, largest contact load).  Nothing is returned of a failed solve but its
-    flags and iterations: the caller redoes the geometry and cold-starts.
+    par: the constants packed once per direction (``pack_step_constants``); ws, wi: the work
+    arrays (``work_arrays``); u, u_prev: the rigid nut's displacement; omega_n: the nut
+    velocity.  Measured need: a call with 37 arguments that returned 13 arrays cost 9 us of
+    a 50 us step at N = 37 (the same call with 10 arguments and scalars back: 0.5 us).
+    Returns (converged, budget exhausted, iterations, residual norm, u, sums of the
+    ball-groove losses, of the nut torques and of the B2B force times slip speed, largest
+    contact load, the output block (STEP_ROWS, N), x (N, 6), active per ring pair, rear and
+    front of the active pairs in chain order (2, K)).  Of a failed solve only its flags and
+    iterations mean anything: the caller redoes the geometry and cold-starts.
     """
+    geo = par[0:9]
+    cst = par[9:17]
+    k_load = par[17:21]
+    k_axis = par[21:25]
+    on_nut = par[25:29]
+    grid = par[29:33]
+    b_r = par[33:51].reshape((3, 6))
+    b_f = par[51:69].reshape((3, 6))
+    c_r = par[69:75]
+    c_f = par[75:81]
+    k_r = par[81:99].reshape((6, 3))
+    k_f = par[99:117].reshape((6, 3))
     az, phi, theta, centres, pair_idx, rear, front = advance(
         azimuth, ratio, d_psi, geo[0], geo[1], track_start, geo[2], sign, geo[3], geo[4],
         geo[5], geo[6], geo[7], geo[8])
@@ -1907,24 +1923,33 @@ def warm_step(azimuth, ratio, d_psi, track_start, sign, geo, x, u, x_prev, u_pre
     loss_sum, torque_sum, b2b_sum, load_max, new_ratio, new_active, new_forces, act \
         = step_totals(terms[:, 6], terms[:, 7], per_contact[:, :, 0], f, speed, active,
                       pair_idx, xs, sign)
-    omega_b = np.empty(n)
-    axial = np.empty(n)
-    loads = np.empty((n, 4))
+    blk = np.empty((STEP_ROWS, n))
     for i in range(n):
-        omega_b[i] = new_ratio[i] * omega_n
-        axial[i] = -terms[i, 8]
+        blk[0, i] = az[i]
+        blk[1, i] = phi[i]
+        blk[2, i] = theta[i]
+        blk[3, i] = new_ratio[i]
+        blk[4, i] = new_ratio[i] * omega_n
+        blk[5, i] = -terms[i, 8]
+        blk[6, i] = new_forces[i]
         for k in range(4):
-            loads[i, k] = per_contact[i, k, 0]
-    g_rear = np.empty(act.shape[0], dtype=np.int64)
-    g_front = np.empty(act.shape[0], dtype=np.int64)
-    g_force = np.empty(act.shape[0])
+            blk[8 + k, i] = per_contact[i, k, 0]
+    groups = np.empty((2, act.shape[0]), dtype=np.int64)
     for j in range(act.shape[0]):
-        g_rear[j] = rear[act[j]]
-        g_front[j] = front[act[j]]
-        g_force[j] = f[act[j]]
-    return (ok, exhausted, iterations, norm, az, phi, theta, xs, us[0], new_forces, new_active,
-            new_ratio, omega_b, loads, axial, g_rear, g_front, g_force, loss_sum, torque_sum,
-            b2b_sum, load_max)
+        groups[0, j] = rear[act[j]]
+        groups[1, j] = front[act[j]]
+        blk[7, j] = f[act[j]]
+    return (ok, exhausted, iterations, norm, us[0], loss_sum, torque_sum, b2b_sum, load_max, blk,
+            xs, new_active, groups)
+
+
+def pack_step_constants(geo, cst, k_load, k_axis, on_nut, grid, b_r, b_f, c_r, c_f, k_r, k_f):
+    """Pack ``warm_step``'s constant arrays into its one ``par`` (117 floats)."""
+    par = np.concatenate([np.ravel(a) for a in (geo, cst, k_load, k_axis, on_nut, grid, b_r, b_f,
+                                                c_r, c_f, k_r, k_f)]).astype(float)
+    if par.shape != (117,):
+        raise ValueError(f"warm_step constants: {par.shape[0]} values, 117 expected")
+    return par
 
 
 def pack_constants(ball, extra_oversize_m=0.0):
