@@ -15,13 +15,16 @@ Without numba the module still imports: ``jit`` returns the plain Python functio
 ``HAVE_NUMBA`` is False (the models then use their numpy paths, which call nothing here
 except the ball screw's elastic system, run as plain Python).
 
-Editing this file: numba's on-disk cache of a kernel is keyed on the kernel's own source
-file, so the kernels of ``ball_screw/kernel.py`` and ``linear_bearing/kernel.py`` keep the
-compiled copy of the old function here until their cache is cleared (``*.nbi``/``*.nbc`` in
-their ``__pycache__``; found 2026-11-26, when an edit here timed the same code twice).  A
-fresh clone (CI) has no cache.
+The on-disk cache: numba keys a function's cache on its own source file only, so a kernel
+of ``ball_screw/kernel.py`` would keep the compiled copy of an old ``gauss_solve`` after an
+edit here (found 2026-11-26, when an edit here timed the same code twice).  ``jit`` therefore
+keys every cache of this package on its own file *and* this one (``_DependencyLocator``): an
+edit of either, or a switch of git branch, recompiles.  Rule that makes this complete: a
+kernel module calls compiled functions of its own file and of this one only
+(test_compiled checks both).
 """
 
+import hashlib
 import math
 import os
 import sys
@@ -64,11 +67,72 @@ def _import_numba():
     return numba
 
 
+_THIS_FILE = os.path.abspath(__file__)
+_PACKAGE_DIR = os.path.dirname(_THIS_FILE)
+
+
+def _file_digest(path):
+    """sha256 of a file's content (the shared part of every cache key of this package)."""
+    with open(path, "rb") as f:
+        return hashlib.sha256(f.read()).hexdigest()
+
+
+def _install_dependency_locator(caching):
+    """
+    Make numba key this package's caches on their own file and on this one.
+
+    A locator put first in numba's list: for a function defined in this package it finds the
+    cache where numba would (``NUMBA_CACHE_DIR`` or ``__pycache__``) and extends numba's own
+    source stamp with this file's digest.  Functions outside the package are left to numba.
+    Returns False if this numba has no such locator list (the hazard is then numba's).
+    """
+    impl = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl", None)
+    classes = getattr(impl, "_locator_classes", None)
+    if not isinstance(classes, list):
+        return False
+    shared = _file_digest(_THIS_FILE)
+
+    class _DependencyLocator:
+        """numba's locator for the function, its source stamp extended (see above)."""
+
+        def __init__(self, inner):
+            self._inner = inner
+
+        def ensure_cache_path(self):
+            return self._inner.ensure_cache_path()
+
+        def get_cache_path(self):
+            return self._inner.get_cache_path()
+
+        def get_source_stamp(self):
+            return (self._inner.get_source_stamp(), shared)
+
+        def get_disambiguator(self):
+            return self._inner.get_disambiguator()
+
+        @classmethod
+        def from_function(cls, py_func, py_file):
+            if not os.path.abspath(py_file).startswith(_PACKAGE_DIR + os.sep):
+                return None
+            for other in classes:
+                if other is cls:
+                    continue
+                inner = other.from_function(py_func, py_file)
+                if inner is not None:
+                    return cls(inner)
+            return None
+
+    classes.insert(0, _DependencyLocator)
+    return True
+
+
 try:
     numba = _import_numba()
     HAVE_NUMBA = True
+    from numba.core import caching as _caching
+    DEPENDENCY_KEYED_CACHE = _install_dependency_locator(_caching)
 
-    def jit(fn=None, exact=False):
+    def jit(fn=None, exact=False, inline=False):
         """
         Compile ``fn`` with numba (no Python objects), cached on disk.
 
@@ -78,16 +142,20 @@ try:
         (``@jit(exact=True)``): no fastmath at all, for code that must round exactly as the
         numpy code it replaces (a fused multiply-add differs in the last bit).  nogil: the
         live node's input thread takes and answers inputs while the model thread is inside
-        a solve.
+        a solve.  ``inline=True``: numba inlines the function into its callers' own code (a
+        call inside a loop keeps the loop from being vectorised; LLVM's own inlining of a
+        function with several results into a loop was measured not to happen).
         """
         if fn is None:
-            return lambda f: jit(f, exact)
+            return lambda f: jit(f, exact, inline)
         return numba.njit(cache=True, error_model="numpy", nogil=True,
+                          inline="always" if inline else "never",
                           fastmath=False if exact else {"contract", "arcp", "reassoc"})(fn)
 except ImportError:        # pragma: no cover - numba is an exec_depend
     HAVE_NUMBA = False
+    DEPENDENCY_KEYED_CACHE = False
 
-    def jit(fn=None, exact=False):
+    def jit(fn=None, exact=False, inline=False):
         """Without numba: the plain Python function."""
         if fn is None:
             return lambda f: f

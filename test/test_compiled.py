@@ -1,9 +1,15 @@
 """
-The shared compiled linear algebra: Gauss solver and block back-substitution.
+The shared compiled linear algebra (Gauss solver, block back-substitution) and the cache.
 
 Compared with numpy's LAPACK solve of the same systems; the singular retry is checked
-against its definition (the Levenberg-Marquardt shifted matrix).
+against its definition (the Levenberg-Marquardt shifted matrix).  The on-disk cache of a
+kernel is checked to follow an edit of the functions it calls in compiled.py.
 """
+
+import os
+from pathlib import Path
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -85,3 +91,63 @@ def test_back_substitution_solves_the_block_tridiagonal_system(nb, blocks):
     for k in range(blocks - 1, -1, -1):
         compiled.back_substitute_block(xs, ys, k, k == blocks - 1)
     np.testing.assert_allclose(ys.reshape(dim, 2), ref, rtol=1e-10, atol=1e-12)
+
+
+_PROBE_KERNEL = '''
+from probe_pkg.compiled import jit, probe_value
+
+
+@jit
+def kernel_value():
+    return probe_value() + 0
+'''
+
+
+def _run_probe(root, cache_dir):
+    env = dict(os.environ, PYTHONPATH=str(root), NUMBA_CACHE_DIR=str(cache_dir))
+    out = subprocess.run(
+        [sys.executable, "-c", "from probe_pkg import kern; print(kern.kernel_value(), "
+         "sum(kern.kernel_value.stats.cache_hits.values()))"],
+        env=env, capture_output=True, text=True, check=True, timeout=300)
+    value, hits = out.stdout.split()
+    return int(value), int(hits)
+
+
+@pytest.mark.skipif(not compiled.HAVE_NUMBA, reason="numba not installed")
+@pytest.mark.parametrize("cache", ["numba_cache_dir", "pycache"])
+def test_a_kernel_never_loads_a_stale_compile_of_a_function_it_calls(tmp_path, cache):
+    """
+    An edit of compiled.py (or a switch of branch) recompiles the kernels that call into it.
+
+    numba keys a cache on the function's own file; a kernel in another module that calls
+    compiled.py's functions kept their old compiled code (measured before ``jit`` keyed the
+    caches on compiled.py too).  A copy of compiled.py and a kernel module calling it, run
+    in fresh processes: the edited function's new value comes out, from a fresh compile;
+    run again, from the cache.
+    """
+    pkg = tmp_path / "probe_pkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    source = Path(compiled.__file__).read_text()
+    probe = "\n\n@jit\ndef probe_value():\n    return {}\n"
+    (pkg / "compiled.py").write_text(source + probe.format(1))
+    (pkg / "kern.py").write_text(_PROBE_KERNEL)
+    cache_dir = tmp_path / "cache" if cache == "numba_cache_dir" else ""
+    assert _run_probe(tmp_path, cache_dir) == (1, 0)
+    assert _run_probe(tmp_path, cache_dir) == (1, 1)        # the cache is used
+    (pkg / "compiled.py").write_text(source + probe.format(2))
+    assert _run_probe(tmp_path, cache_dir)[0] == 2           # not the stale 1
+    assert _run_probe(tmp_path, cache_dir) == (2, 1)
+
+
+def test_kernel_modules_call_compiled_functions_of_their_own_file_and_compiled_py_only():
+    """What makes the cache key above complete: no kernel imports another kernel module."""
+    root = Path(compiled.__file__).parent
+    for path in root.rglob("*.py"):
+        text = path.read_text()
+        if "compiled import jit" not in text:
+            continue
+        for line in text.splitlines():
+            if line.startswith(("from bb_friction_ros", "import bb_friction_ros")):
+                assert "kernel" not in line or path.name == "kernel.py" and "compiled" in line, \
+                    f"{path.relative_to(root)}: {line}"

@@ -61,121 +61,170 @@ _LAST_FACTOR = 5e2
 _FIRST_FACTOR = 5e1
 
 
+# --- The evaluation laid out for the vector units -------------------------------------------
+#
+# ``evaluate_lanes`` runs as passes over the balls, one contact type at a time, each pass a
+# loop over the balls (the vector lanes) without calls or early exits, so that LLVM
+# vectorises it: the contact geometry and loads (``_contact_loads``, compiled without
+# fastmath: the loads are bit for bit the numpy model's), the slip kinematics and the map
+# coordinates (``_contact_kinematics``), the friction map's patches (``_contact_maps``,
+# scalar: a table lookup per contact, which the vectoriser would do with gathers, slow on
+# this CPU), the forces and moments (``_contact_forces``) and the Jacobian
+# (``_contact_jacobian``).  An open contact (delta <= 0) runs through every pass with q = 0
+# and finite normals and adds exact zeros, as the scalar loop that skipped it did.
+#
+# The work arrays are flat, one row of _CHUNK lanes per quantity (and contact type), balls
+# taken _CHUNK at a time: with rows a compile-time constant apart, LLVM sees that the rows
+# of one array never overlap, so a pass needs no run-time alias checks (with the rows a
+# run-time N apart it needed more than its limit allows and stayed scalar, measured).
+
+_CHUNK = 64         # balls per pass (lanes); N = 37 is one chunk
+# Rows of ev (contact type k, row r: ev[(k * 6 + r) * _CHUNK + lane]): the contact.
+_NX, _NZ, _DIST, _Q, _SQ, _POS = 0, 1, 2, 3, 4, 5
+# Rows of ek (the same layout): the ellipse, slip, spin and map coordinates.
+_A, _AS, _RX, _RY, _RHO, _S, _W, _SX, _SY = 0, 1, 2, 3, 4, 5, 6, 7, 8
+# Rows of em: the map's fx, fy, m, p (0..3), their t- (4..7) and h-derivatives (8..11).
+_VAL = 0
+_DVT = 4
+_DVH = 8
+# Rows of acc (per ball: acc[row * _CHUNK + lane]): terms 0..8, then per column j of the
+# Jacobian (j = 0..6) jac[r, j] at 9 + 7 j + r and dax[j] at 9 + 7 j + 6.  Rows of pco:
+# per contact type k its loss (2 k) and axial force (2 k + 1).
+_ACC_JAC = 9
+_ACC_ROWS = 58
+# One work array: ev (6 rows), ek (9), em (12) per contact type, acc, pco (8).  Each pass
+# writes other arrays than it reads (else LLVM must check at run time whether a row it
+# writes is one it reads, and gave up: measured).
+# The passes' inputs are copied into xin first: rows x[:, j] (j = 0..5), the nut
+# displacement u + u_ball (6), the arc centres' xi (7 + k) and zeta (11 + k): a pass that
+# read x or the centres in place did not vectorise ("unsafe indirect dependence").
+_XIN_U, _XIN_CX, _XIN_CZ = 6, 7, 11
+_EV_BLOCK = 6 * _CHUNK
+_EK_BLOCK = 9 * _CHUNK
+_EM_BLOCK = 12 * _CHUNK
+_EK_OFF = 4 * _EV_BLOCK
+_EM_OFF = _EK_OFF + 4 * _EK_BLOCK
+_ACC_OFF = _EM_OFF + 4 * _EM_BLOCK
+_PCO_OFF = _ACC_OFF + _ACC_ROWS * _CHUNK
+_XIN_OFF = _PCO_OFF + 8 * _CHUNK
+WORK_SIZE = _XIN_OFF + 15 * _CHUNK
+
+# atan2 as a polynomial the vectoriser can inline (libm's atan2 is a call per contact, and
+# numba has no vector math library here: SVML is not operational).  Cephes' atan: on
+# [0, 0.66] z + z^3 P(z^2) / Q(z^2), above that pi/4 + atan((z - 1) / (z + 1)); the other
+# octants by symmetry.  Against libm over all quadrants and ratios 1e-8..1e8: at most 2 ulp
+# of the result, so at most 4.5e-16 rad (tested in test_kernel_lanes).
+_AT_P = (-8.750608600031904122785e-01, -1.615753718733365076637e+01,
+         -7.500855792314704667340e+01, -1.228866684490136173410e+02,
+         -6.485021904942025371773e+01)
+_AT_Q = (2.485846490142306297962e+01, 1.650270098316988542046e+02,
+         4.328810604912902668951e+02, 4.853903996359136964868e+02,
+         1.945506571482613964425e+02)
+_AT_MOREBITS = 6.123233995736765886130e-17
+_HALF_PI = 0.5 * math.pi
+_QUARTER_PI = 0.25 * math.pi
+
+
 @_jit
-def _map_eval(coef, t, h, n_pol, n_az, dtm, dhm, val, dvt, dvh, deriv):
-    """
-    Bicubic patch of FrictionMapSphere at (t, h): values and (``deriv``) t-, h-derivatives.
-
-    h in (-pi, pi] (an atan2).
-    """
-    if t < 0.0:
-        t = 0.0
-    elif t > math.pi:
-        t = math.pi
-    xx = t / dtm
-    i0 = int(xx)
-    if i0 > n_pol - 1:
-        i0 = n_pol - 1
-    sx = xx - i0
-    # h mod 2 pi for h in (-pi, pi], as the modulo rounds it, without its fmod.
-    yy = (h + _TWO_PI if h < 0.0 else h) / dhm
-    j0 = int(yy)
-    if j0 > n_az - 1:
-        j0 = n_az - 1
-    sy = yy - j0
-    cell = i0 * n_az + j0
-    sy2 = sy * sy
-    sy3 = sy2 * sy
-    sx2 = sx * sx
-    sx3 = sx2 * sx
-    for o in range(4):
-        b = 4 * o
-        # Power j of s_h at coef[cell, j, 4 o + i]; then the polynomial in s_t (power i).
-        c = coef[cell]
-        qv0 = c[0, b] + c[1, b] * sy + c[2, b] * sy2 + c[3, b] * sy3
-        qv1 = c[0, b + 1] + c[1, b + 1] * sy + c[2, b + 1] * sy2 + c[3, b + 1] * sy3
-        qv2 = c[0, b + 2] + c[1, b + 2] * sy + c[2, b + 2] * sy2 + c[3, b + 2] * sy3
-        qv3 = c[0, b + 3] + c[1, b + 3] * sy + c[2, b + 3] * sy2 + c[3, b + 3] * sy3
-        val[o] = qv0 + qv1 * sx + qv2 * sx2 + qv3 * sx3
-        if not deriv:
-            continue
-        qd0 = c[1, b] + 2.0 * c[2, b] * sy + 3.0 * c[3, b] * sy2
-        qd1 = c[1, b + 1] + 2.0 * c[2, b + 1] * sy + 3.0 * c[3, b + 1] * sy2
-        qd2 = c[1, b + 2] + 2.0 * c[2, b + 2] * sy + 3.0 * c[3, b + 2] * sy2
-        qd3 = c[1, b + 3] + 2.0 * c[2, b + 3] * sy + 3.0 * c[3, b + 3] * sy2
-        dvt[o] = (qv1 + 2.0 * qv2 * sx + 3.0 * qv3 * sx2) / dtm
-        dvh[o] = (qd0 + qd1 * sx + qd2 * sx2 + qd3 * sx3) / dhm
+def atan2_poly(y, x):
+    """atan2(y, x) [rad] without a libm call, within 2 ulp of it (vectorisable)."""
+    ax = abs(x)
+    ay = abs(y)
+    swap = ay > ax
+    num = ax if swap else ay
+    den = ay if swap else ax
+    z = num / den if den > 0.0 else 0.0
+    red = z > 0.66
+    zz = (z - 1.0) / (z + 1.0) if red else z
+    z2 = zz * zz
+    p = (((_AT_P[0] * z2 + _AT_P[1]) * z2 + _AT_P[2]) * z2 + _AT_P[3]) * z2 + _AT_P[4]
+    q = ((((z2 + _AT_Q[0]) * z2 + _AT_Q[1]) * z2 + _AT_Q[2]) * z2 + _AT_Q[3]) * z2 + _AT_Q[4]
+    r = zz * (z2 * p / q) + zz
+    r = _QUARTER_PI + (r + 0.5 * _AT_MOREBITS) if red else r
+    r = _HALF_PI - r + _AT_MOREBITS if swap else r
+    r = math.pi - r if x < 0.0 else r
+    return -r if y < 0.0 else r
 
 
-@_jit
-def evaluate_balls(x, u, u_ball, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
-                   grid, scale, want_jac, res, jac, dax, terms, per_contact):
-    """
-    Ball-groove residuals of all balls (``single_ball.BallGrooveModel.evaluate``).
+# glibc's hypot (2.35 on; dbl-64 without FMA, the x86-64 build): a scaled sqrt plus one
+# correction step.  Written out so that it vectorises; compiled without fastmath it rounds
+# exactly as libm, which numpy's np.hypot calls, so the contact loads stay bit for bit the
+# numpy model's (test_fast_solver; test_kernel_lanes against libm).
+_HYPOT_LARGE = 2.0 ** 511
+_HYPOT_TINY = 2.0 ** -511
+_HYPOT_SCALE = 2.0 ** -600
+_HYPOT_EPS = 2.0 ** -54
 
-    The nut displacement at ball i is u + u_ball[i] (u_ball = 0 for a rigid nut and shaft;
-    the elastic load distribution gives each ball its own).
-    cst = (lambda, R_B, cos a, sin a, l, mu, free distance, r_gear); grid = (n_polar,
-    n_azimuth, dt, dh).  Writes res (N, 6) = [force, moment / R_B] / scale, jac (N, 6, 7),
-    dax (N, 7) = d(axial) / scale; terms (N, 10) = force (3), moment (3), loss, nut torque,
-    axial force, 0; per_contact (N, 4, 3) = load, loss and the contact angle, which only
-    ``contact_angles`` writes, on demand (no output of the model reads it: 148 atan2 per
-    solve at N = 37, so ``newton`` does not compute it).  Returns the summed axial force [N].
-    """
-    lam, r_b, ca, sa, ell, mu, free, r_gear = (cst[0], cst[1], cst[2], cst[3], cst[4],
-                                               cst[5], cst[6], cst[7])
-    n_pol, n_az = int(grid[0]), int(grid[1])
-    dtm, dhm = grid[2], grid[3]
-    val = np.empty(4)
-    dvt = np.empty(4)
-    dvh = np.empty(4)
-    d6 = np.empty(6)
-    inv_s = 1.0 / scale
-    inv_rs = 1.0 / (r_b * scale)
-    axial_sum = 0.0
-    nb = x.shape[0]
-    # a = k_axis q^(1/3) with q = k_load delta^(3/2) is k_axis k_load^(1/3) sqrt(delta): one
-    # cbrt per contact type here instead of one per contact and evaluation (measured: the
-    # transcendental calls are most of an evaluation without the Jacobian).
-    ka_kl = np.empty(4)
+
+@_jit(exact=True)
+def hypot_exact(x, y):
+    """sqrt(x^2 + y^2) rounded as glibc's hypot (finite x, y), without a call."""
+    ax = max(abs(x), abs(y))
+    ay = min(abs(x), abs(y))
+    tiny = ay < _HYPOT_TINY
+    s = _HYPOT_SCALE if ax > _HYPOT_LARGE else (1.0 / _HYPOT_SCALE if tiny else 1.0)
+    a = ax * s
+    b = ay * s
+    h = math.sqrt(a * a + b * b)
+    if h <= 2.0 * b:
+        d = h - b
+        t1 = a * (2.0 * d - a)
+        t2 = (d - 2.0 * (a - b)) * d
+    else:
+        d = h - a
+        t1 = 2.0 * d * (a - 2.0 * b)
+        t2 = (4.0 * d - b) * b + d * d
+    h = (h - (t1 + t2) / (2.0 * h)) / s
+    small = (ax >= ay / _HYPOT_EPS) if tiny else (ay <= ax * _HYPOT_EPS)
+    return ax + ay if small else h
+
+
+@_jit(exact=True)
+def _contact_loads(xin, m, lam, ca, free, on_nut, k_load, ev):
+    """Compute normals, distances and loads of balls 0..m-1 (numpy's rounding); open: q = 0."""
     for k in range(4):
-        ka_kl[k] = k_axis[k] * np.cbrt(k_load[k])
-    for i in range(nb):
-        x0, x1, wb, ox, oy, oz = x[i, 0], x[i, 1], x[i, 2], x[i, 3], x[i, 4], x[i, 5]
-        ui = u + u_ball[i]
-        for r in range(10):
-            terms[i, r] = 0.0
-        for r in range(6):
-            res[i, r] = 0.0
-        if want_jac:
-            for r in range(6):
-                for j in range(7):
-                    jac[i, r, j] = 0.0
-            for j in range(7):
-                dax[i, j] = 0.0
-        for k in range(4):
-            g = on_nut[k]
-            gs = g * sign
-            kl = k_load[k]
-            ka = k_axis[k]
-            dxv = lam * x0 - centres[i, k, 0]
-            dzv = lam * x1 - centres[i, k, 1] - g * (lam * ca * ui)
-            dist = math.hypot(dxv, dzv)
-            nx = dxv / dist
-            nz = dzv / dist
+        evk = ev[k * _EV_BLOCK:(k + 1) * _EV_BLOCK]
+        cx = xin[(_XIN_CX + k) * _CHUNK:(_XIN_CX + k + 1) * _CHUNK]
+        cz = xin[(_XIN_CZ + k) * _CHUNK:(_XIN_CZ + k + 1) * _CHUNK]
+        g = on_nut[k]
+        kl = k_load[k]
+        for i in range(m):
+            dxv = lam * xin[i] - cx[i]
+            dzv = (lam * xin[_CHUNK + i] - cz[i]
+                   - g * (lam * ca * xin[_XIN_U * _CHUNK + i]))
+            dist = hypot_exact(dxv, dzv)
             delta = dist - free
             pos = delta > 0.0
-            if not pos:
-                # An open contact (q = 0) adds exact zeros to every residual and Jacobian
-                # entry (all terms carry q, mu q or dq = 0): skip its friction map (a quarter
-                # of the contacts without preload: 25 % of an evaluation, measured).
-                per_contact[i, k, 0] = 0.0
-                per_contact[i, k, 1] = 0.0
-                continue
-            dpos = delta
+            dpos = delta if pos else 0.0
             sq = math.sqrt(dpos)
-            q = kl * dpos * sq
-            a = ka_kl[k] * sq
+            # An open contact keeps finite normals: every term it adds is then an exact zero.
+            evk[_NX * _CHUNK + i] = dxv / dist if pos else 0.0
+            evk[_NZ * _CHUNK + i] = dzv / dist if pos else 0.0
+            evk[_DIST * _CHUNK + i] = dist if pos else 1.0
+            evk[_Q * _CHUNK + i] = kl * dpos * sq
+            evk[_SQ * _CHUNK + i] = sq
+            evk[_POS * _CHUNK + i] = 1.0 if pos else 0.0
+
+
+@_jit
+def _contact_kinematics(xin, m, r_b, sa, ca, ell, sign, on_nut, k_load, k_axis, dtm, dhm,
+                        ev, ek):
+    """Contact ellipse, slip, spin and the friction map's coordinates (t, h) per contact."""
+    for k in range(4):
+        evk = ev[k * _EV_BLOCK:(k + 1) * _EV_BLOCK]
+        ekk = ek[k * _EK_BLOCK:(k + 1) * _EK_BLOCK]
+        gs = on_nut[k] * sign
+        ka = k_axis[k]
+        # a = k_axis q^(1/3) = k_axis k_load^(1/3) sqrt(delta): one cbrt per contact type.
+        ka_kl = ka * np.cbrt(k_load[k])
+        for i in range(m):
+            nx = evk[_NX * _CHUNK + i]
+            nz = evk[_NZ * _CHUNK + i]
+            wb = xin[2 * _CHUNK + i]
+            ox = xin[3 * _CHUNK + i]
+            oy = xin[4 * _CHUNK + i]
+            oz = xin[5 * _CHUNK + i]
+            a = ka_kl * evk[_SQ * _CHUNK + i]
             a_s = max(a, ka * 1e-9)
             vx = r_b * (oy - gs * sa)
             vy = wb * ell + r_b * (oz * nx - ox * nz) - gs * (ell + r_b * ca * nx)
@@ -183,14 +232,94 @@ def evaluate_balls(x, u, u_ball, centres, sign, cst, k_load, k_axis, on_nut, coe
             rx = vx / a_s
             ry = vy / a_s
             rho = max(math.sqrt(rx * rx + ry * ry), _TINY)
-            s = math.sqrt(rho * rho + w * w)
-            t = math.atan2(rho, w)
-            h = math.atan2(ry, rx)
-            if k < 2:
-                _map_eval(coef_s, t, h, n_pol, n_az, dtm, dhm, val, dvt, dvh, want_jac)
-            else:
-                _map_eval(coef_n, t, h, n_pol, n_az, dtm, dhm, val, dvt, dvh, want_jac)
-            fx, fy, mm, pp = val[0], val[1], val[2], val[3]
+            t = atan2_poly(rho, w)
+            h = atan2_poly(ry, rx)
+            ekk[_A * _CHUNK + i] = a
+            ekk[_AS * _CHUNK + i] = a_s
+            ekk[_RX * _CHUNK + i] = rx
+            ekk[_RY * _CHUNK + i] = ry
+            ekk[_RHO * _CHUNK + i] = rho
+            ekk[_S * _CHUNK + i] = math.sqrt(rho * rho + w * w)
+            ekk[_W * _CHUNK + i] = w
+            # The map's cell coordinates, NaN-safe: t clamped to [0, pi]; h mod 2 pi for h in
+            # (-pi, pi], as the modulo rounds it, without its fmod.
+            t = t if t >= 0.0 else 0.0
+            t = math.pi if t > math.pi else t
+            ekk[_SX * _CHUNK + i] = t / dtm
+            yy = (h + _TWO_PI if h < 0.0 else h) / dhm
+            ekk[_SY * _CHUNK + i] = yy if yy >= 0.0 else 0.0
+
+
+@_jit
+def _contact_maps(coef_s, coef_n, m, n_pol, n_az, dtm, dhm, want_jac, ev, ek, em):
+    """Bicubic patch of FrictionMapSphere at every loaded contact: values, t-, h-derivatives."""
+    for k in range(4):
+        evk = ev[k * _EV_BLOCK:(k + 1) * _EV_BLOCK]
+        ekk = ek[k * _EK_BLOCK:(k + 1) * _EK_BLOCK]
+        emk = em[k * _EM_BLOCK:(k + 1) * _EM_BLOCK]
+        coef = coef_s if k < 2 else coef_n
+        for i in range(m):
+            if evk[_POS * _CHUNK + i] == 0.0:
+                for r in range(12):
+                    emk[(_VAL + r) * _CHUNK + i] = 0.0
+                continue
+            xx = ekk[_SX * _CHUNK + i]
+            i0 = int(xx)
+            if i0 > n_pol - 1:
+                i0 = n_pol - 1
+            sx = xx - i0
+            yy = ekk[_SY * _CHUNK + i]
+            j0 = int(yy)
+            if j0 > n_az - 1:
+                j0 = n_az - 1
+            sy = yy - j0
+            c = coef[i0 * n_az + j0]
+            sy2 = sy * sy
+            sy3 = sy2 * sy
+            sx2 = sx * sx
+            sx3 = sx2 * sx
+            for o in range(4):
+                # Power j of s_h at c[j, 4 o + i]; then the polynomial in s_t (power i).
+                b = 4 * o
+                qv0 = c[0, b] + c[1, b] * sy + c[2, b] * sy2 + c[3, b] * sy3
+                qv1 = c[0, b + 1] + c[1, b + 1] * sy + c[2, b + 1] * sy2 + c[3, b + 1] * sy3
+                qv2 = c[0, b + 2] + c[1, b + 2] * sy + c[2, b + 2] * sy2 + c[3, b + 2] * sy3
+                qv3 = c[0, b + 3] + c[1, b + 3] * sy + c[2, b + 3] * sy2 + c[3, b + 3] * sy3
+                emk[(_VAL + o) * _CHUNK + i] = qv0 + qv1 * sx + qv2 * sx2 + qv3 * sx3
+                if not want_jac:
+                    continue
+                qd0 = c[1, b] + 2.0 * c[2, b] * sy + 3.0 * c[3, b] * sy2
+                qd1 = c[1, b + 1] + 2.0 * c[2, b + 1] * sy + 3.0 * c[3, b + 1] * sy2
+                qd2 = c[1, b + 2] + 2.0 * c[2, b + 2] * sy + 3.0 * c[3, b + 2] * sy2
+                qd3 = c[1, b + 3] + 2.0 * c[2, b + 3] * sy + 3.0 * c[3, b + 3] * sy2
+                dv_t = (qv1 + 2.0 * qv2 * sx + 3.0 * qv3 * sx2) / dtm
+                dv_h = (qd0 + qd1 * sx + qd2 * sx2 + qd3 * sx3) / dhm
+                emk[(_DVT + o) * _CHUNK + i] = dv_t
+                emk[(_DVH + o) * _CHUNK + i] = dv_h
+
+
+@_jit
+def _contact_forces(m, r_b, sa, ca, ell, mu, r_gear, on_nut, ev, ek, em, acc, pco):
+    """Sum the contacts' forces, moments, loss, nut torque and axial force per ball."""
+    for r in range(9):
+        for i in range(m):
+            acc[r * _CHUNK + i] = 0.0
+    for k in range(4):
+        evk = ev[k * _EV_BLOCK:(k + 1) * _EV_BLOCK]
+        ekk = ek[k * _EK_BLOCK:(k + 1) * _EK_BLOCK]
+        emk = em[k * _EM_BLOCK:(k + 1) * _EM_BLOCK]
+        pcok = pco[k * 2 * _CHUNK:(k + 1) * 2 * _CHUNK]
+        g = on_nut[k]
+        for i in range(m):
+            pos = evk[_POS * _CHUNK + i] != 0.0
+            nx = evk[_NX * _CHUNK + i]
+            nz = evk[_NZ * _CHUNK + i]
+            q = evk[_Q * _CHUNK + i]
+            a = ekk[_A * _CHUNK + i]
+            fx = emk[_VAL * _CHUNK + i]
+            fy = emk[(_VAL + 1) * _CHUNK + i]
+            mm = emk[(_VAL + 2) * _CHUNK + i]
+            pp = emk[(_VAL + 3) * _CHUNK + i]
             p_ = mu * q
             am = a * mm
             f0 = -q * nx + p_ * fx * nz
@@ -199,92 +328,351 @@ def evaluate_balls(x, u, u_ball, centres, sign, cst, k_load, k_axis, on_nut, coe
             m0 = p_ * (-r_b * fy * nz + am * nx)
             m1 = p_ * r_b * fx
             m2 = p_ * (r_b * fy * nx + am * nz)
-            loss_c = p_ * a * s * pp
+            loss_c = p_ * a * ekk[_S * _CHUNK + i] * pp
             torque_c = g * (f0 * (r_b * sa * nz) + f1 * (ell - r_gear * sa + r_b * ca * nx)
                             + f2 * (-r_gear * ca - r_b * sa * nx) + p_ * am * nz * ca)
             axial_c = g * (f1 * sa + f2 * ca)
-            terms[i, 0] += f0
-            terms[i, 1] += f1
-            terms[i, 2] += f2
-            terms[i, 3] += m0
-            terms[i, 4] += m1
-            terms[i, 5] += m2
-            terms[i, 6] += loss_c
-            terms[i, 7] += torque_c
-            terms[i, 8] += axial_c
-            per_contact[i, k, 0] = q
-            per_contact[i, k, 1] = loss_c
-            axial_sum += axial_c
-            if not want_jac:
-                continue
-            a_over_3q = a / (3.0 * q) if (pos and q > 0.0) else 0.0
-            inv_dist = 1.0 / dist
-            inv_as = 1.0 / a_s
+            pcok[i] = loss_c if pos else 0.0
+            pcok[_CHUNK + i] = axial_c if pos else 0.0
+            acc[i] += f0 if pos else 0.0
+            acc[_CHUNK + i] += f1 if pos else 0.0
+            acc[2 * _CHUNK + i] += f2 if pos else 0.0
+            acc[3 * _CHUNK + i] += m0 if pos else 0.0
+            acc[4 * _CHUNK + i] += m1 if pos else 0.0
+            acc[5 * _CHUNK + i] += m2 if pos else 0.0
+            acc[6 * _CHUNK + i] += loss_c if pos else 0.0
+            acc[7 * _CHUNK + i] += torque_c if pos else 0.0
+            acc[8 * _CHUNK + i] += axial_c if pos else 0.0
+
+
+@_jit
+def _contact_jacobian(xin, m, lam, r_b, sa, ca, ell, mu, sign, on_nut, k_load, inv_s,
+                      inv_rs, ev, ek, em, acc):
+    """
+    Sum the contacts' derivatives of the scaled residual and axial force per ball.
+
+    The six state columns written out (a loop over them inside the loop over the balls kept
+    that loop from being the innermost one, so it stayed scalar: measured), each as the
+    scalar loop's expression with the terms of the rate columns that are exact zeros
+    (dq = da = dn = 0) left out.
+    """
+    for r in range(_ACC_JAC, _ACC_ROWS):
+        for i in range(m):
+            acc[r * _CHUNK + i] = 0.0
+    for k in range(4):
+        evk = ev[k * _EV_BLOCK:(k + 1) * _EV_BLOCK]
+        ekk = ek[k * _EK_BLOCK:(k + 1) * _EK_BLOCK]
+        emk = em[k * _EM_BLOCK:(k + 1) * _EM_BLOCK]
+        g = on_nut[k]
+        gs = g * sign
+        kl = k_load[k]
+        cu = -g * ca
+        for i in range(m):
+            pos = evk[_POS * _CHUNK + i] != 0.0
+            nx = evk[_NX * _CHUNK + i]
+            nz = evk[_NZ * _CHUNK + i]
+            q = evk[_Q * _CHUNK + i]
+            sq = evk[_SQ * _CHUNK + i]
+            a = ekk[_A * _CHUNK + i]
+            rx = ekk[_RX * _CHUNK + i]
+            ry = ekk[_RY * _CHUNK + i]
+            rho = ekk[_RHO * _CHUNK + i]
+            s = ekk[_S * _CHUNK + i]
+            w = ekk[_W * _CHUNK + i]
+            fx = emk[_VAL * _CHUNK + i]
+            fy = emk[(_VAL + 1) * _CHUNK + i]
+            mm = emk[(_VAL + 2) * _CHUNK + i]
+            t_fx = emk[_DVT * _CHUNK + i]
+            t_fy = emk[(_DVT + 1) * _CHUNK + i]
+            t_mm = emk[(_DVT + 2) * _CHUNK + i]
+            h_fx = emk[_DVH * _CHUNK + i]
+            h_fy = emk[(_DVH + 1) * _CHUNK + i]
+            h_mm = emk[(_DVH + 2) * _CHUNK + i]
+            ox = xin[3 * _CHUNK + i]
+            oz = xin[5 * _CHUNK + i]
+            p_ = mu * q
+            am = a * mm
+            a_over_3q = a / (3.0 * q) if q > 0.0 else 0.0
+            inv_dist = 1.0 / evk[_DIST * _CHUNK + i]
+            inv_as = 1.0 / ekk[_AS * _CHUNK + i]
             inv_ss = 1.0 / (s * s)
             inv_rr = 1.0 / (rho * rho)
+            # Column xi: through the normal, the load and the ellipse.
+            dn_l = nx * lam
+            dnx = (lam - nx * dn_l) * inv_dist
+            dnz = -nz * dn_l * inv_dist
+            dq = 1.5 * kl * sq * dn_l
+            da = a_over_3q * dq
+            dvy = r_b * (oz - gs * ca) * dnx - r_b * ox * dnz
+            dw = ox * dnx + (oz - gs * ca) * dnz
+            drx = -rx * da * inv_as
+            dry = (dvy - ry * da) * inv_as
+            dt = (w * (rx * drx + ry * dry) / rho - rho * dw) * inv_ss
+            dh = (rx * dry - ry * drx) * inv_rr
+            dfx = t_fx * dt + h_fx * dh
+            dfy = t_fy * dt + h_fy * dh
+            dmm = t_mm * dt + h_mm * dh
+            dp_ = mu * dq
+            dam = mm * da + a * dmm
+            d_fx = -dq * nx - q * dnx + dp_ * fx * nz + p_ * nz * dfx + p_ * fx * dnz
+            d_fy = dp_ * fy + p_ * dfy
+            d_fz = -dq * nz - q * dnz - dp_ * fx * nx - p_ * nx * dfx - p_ * fx * dnx
+            d_mx = (dp_ * (-r_b * fy * nz + am * nx)
+                    + p_ * (-r_b * (dfy * nz + fy * dnz) + dam * nx + am * dnx))
+            d_my = r_b * (dp_ * fx + p_ * dfx)
+            d_mz = (dp_ * (r_b * fy * nx + am * nz)
+                    + p_ * (r_b * (dfy * nx + fy * dnx) + dam * nz + am * dnz))
+            d0 = d_fx * inv_s if pos else 0.0
+            d1 = d_fy * inv_s if pos else 0.0
+            d2 = d_fz * inv_s if pos else 0.0
+            d3 = d_mx * inv_rs if pos else 0.0
+            d4 = d_my * inv_rs if pos else 0.0
+            d5 = d_mz * inv_rs if pos else 0.0
+            d_ax = g * (d_fy * sa + d_fz * ca) * inv_s if pos else 0.0
+            acc[9 * _CHUNK + i] += d0
+            acc[10 * _CHUNK + i] += d1
+            acc[11 * _CHUNK + i] += d2
+            acc[12 * _CHUNK + i] += d3
+            acc[13 * _CHUNK + i] += d4
+            acc[14 * _CHUNK + i] += d5
+            acc[15 * _CHUNK + i] += d_ax
+            # Column zeta (and u).
+            dn_l = nz * lam
+            dnx = -nx * dn_l * inv_dist
+            dnz = (lam - nz * dn_l) * inv_dist
+            dq = 1.5 * kl * sq * dn_l
+            da = a_over_3q * dq
+            dvy = r_b * (oz - gs * ca) * dnx - r_b * ox * dnz
+            dw = ox * dnx + (oz - gs * ca) * dnz
+            drx = -rx * da * inv_as
+            dry = (dvy - ry * da) * inv_as
+            dt = (w * (rx * drx + ry * dry) / rho - rho * dw) * inv_ss
+            dh = (rx * dry - ry * drx) * inv_rr
+            dfx = t_fx * dt + h_fx * dh
+            dfy = t_fy * dt + h_fy * dh
+            dmm = t_mm * dt + h_mm * dh
+            dp_ = mu * dq
+            dam = mm * da + a * dmm
+            d_fx = -dq * nx - q * dnx + dp_ * fx * nz + p_ * nz * dfx + p_ * fx * dnz
+            d_fy = dp_ * fy + p_ * dfy
+            d_fz = -dq * nz - q * dnz - dp_ * fx * nx - p_ * nx * dfx - p_ * fx * dnx
+            d_mx = (dp_ * (-r_b * fy * nz + am * nx)
+                    + p_ * (-r_b * (dfy * nz + fy * dnz) + dam * nx + am * dnx))
+            d_my = r_b * (dp_ * fx + p_ * dfx)
+            d_mz = (dp_ * (r_b * fy * nx + am * nz)
+                    + p_ * (r_b * (dfy * nx + fy * dnx) + dam * nz + am * dnz))
+            d0 = d_fx * inv_s if pos else 0.0
+            d1 = d_fy * inv_s if pos else 0.0
+            d2 = d_fz * inv_s if pos else 0.0
+            d3 = d_mx * inv_rs if pos else 0.0
+            d4 = d_my * inv_rs if pos else 0.0
+            d5 = d_mz * inv_rs if pos else 0.0
+            d_ax = g * (d_fy * sa + d_fz * ca) * inv_s if pos else 0.0
+            acc[16 * _CHUNK + i] += d0
+            acc[17 * _CHUNK + i] += d1
+            acc[18 * _CHUNK + i] += d2
+            acc[19 * _CHUNK + i] += d3
+            acc[20 * _CHUNK + i] += d4
+            acc[21 * _CHUNK + i] += d5
+            acc[22 * _CHUNK + i] += d_ax
+            # u enters through the nut arcs' zeta shift (module docstring).
+            acc[51 * _CHUNK + i] += cu * d0
+            acc[52 * _CHUNK + i] += cu * d1
+            acc[53 * _CHUNK + i] += cu * d2
+            acc[54 * _CHUNK + i] += cu * d3
+            acc[55 * _CHUNK + i] += cu * d4
+            acc[56 * _CHUNK + i] += cu * d5
+            acc[57 * _CHUNK + i] += cu * d_ax
+            # Columns w_B, Omega_x, Omega_y, Omega_z: the velocities only (dq = da = 0).
+            dry = ell * inv_as
+            dt = w * (ry * dry) / rho * inv_ss
+            dh = (rx * dry) * inv_rr
+            dfx = t_fx * dt + h_fx * dh
+            dfy = t_fy * dt + h_fy * dh
+            dmm = t_mm * dt + h_mm * dh
+            dam = a * dmm
+            d_fx = p_ * nz * dfx
+            d_fy = p_ * dfy
+            d_fz = -p_ * nx * dfx
+            d_mx = p_ * (-r_b * dfy * nz + dam * nx)
+            d_my = r_b * p_ * dfx
+            d_mz = p_ * (r_b * dfy * nx + dam * nz)
+            d0 = d_fx * inv_s if pos else 0.0
+            d1 = d_fy * inv_s if pos else 0.0
+            d2 = d_fz * inv_s if pos else 0.0
+            d3 = d_mx * inv_rs if pos else 0.0
+            d4 = d_my * inv_rs if pos else 0.0
+            d5 = d_mz * inv_rs if pos else 0.0
+            d_ax = g * (d_fy * sa + d_fz * ca) * inv_s if pos else 0.0
+            acc[23 * _CHUNK + i] += d0
+            acc[24 * _CHUNK + i] += d1
+            acc[25 * _CHUNK + i] += d2
+            acc[26 * _CHUNK + i] += d3
+            acc[27 * _CHUNK + i] += d4
+            acc[28 * _CHUNK + i] += d5
+            acc[29 * _CHUNK + i] += d_ax
+            dry = -r_b * nz * inv_as
+            dt = (w * (ry * dry) / rho - rho * nx) * inv_ss
+            dh = (rx * dry) * inv_rr
+            dfx = t_fx * dt + h_fx * dh
+            dfy = t_fy * dt + h_fy * dh
+            dmm = t_mm * dt + h_mm * dh
+            dam = a * dmm
+            d_fx = p_ * nz * dfx
+            d_fy = p_ * dfy
+            d_fz = -p_ * nx * dfx
+            d_mx = p_ * (-r_b * dfy * nz + dam * nx)
+            d_my = r_b * p_ * dfx
+            d_mz = p_ * (r_b * dfy * nx + dam * nz)
+            d0 = d_fx * inv_s if pos else 0.0
+            d1 = d_fy * inv_s if pos else 0.0
+            d2 = d_fz * inv_s if pos else 0.0
+            d3 = d_mx * inv_rs if pos else 0.0
+            d4 = d_my * inv_rs if pos else 0.0
+            d5 = d_mz * inv_rs if pos else 0.0
+            d_ax = g * (d_fy * sa + d_fz * ca) * inv_s if pos else 0.0
+            acc[30 * _CHUNK + i] += d0
+            acc[31 * _CHUNK + i] += d1
+            acc[32 * _CHUNK + i] += d2
+            acc[33 * _CHUNK + i] += d3
+            acc[34 * _CHUNK + i] += d4
+            acc[35 * _CHUNK + i] += d5
+            acc[36 * _CHUNK + i] += d_ax
+            drx = r_b * inv_as
+            dt = w * (rx * drx) / rho * inv_ss
+            dh = (-ry * drx) * inv_rr
+            dfx = t_fx * dt + h_fx * dh
+            dfy = t_fy * dt + h_fy * dh
+            dmm = t_mm * dt + h_mm * dh
+            dam = a * dmm
+            d_fx = p_ * nz * dfx
+            d_fy = p_ * dfy
+            d_fz = -p_ * nx * dfx
+            d_mx = p_ * (-r_b * dfy * nz + dam * nx)
+            d_my = r_b * p_ * dfx
+            d_mz = p_ * (r_b * dfy * nx + dam * nz)
+            d0 = d_fx * inv_s if pos else 0.0
+            d1 = d_fy * inv_s if pos else 0.0
+            d2 = d_fz * inv_s if pos else 0.0
+            d3 = d_mx * inv_rs if pos else 0.0
+            d4 = d_my * inv_rs if pos else 0.0
+            d5 = d_mz * inv_rs if pos else 0.0
+            d_ax = g * (d_fy * sa + d_fz * ca) * inv_s if pos else 0.0
+            acc[37 * _CHUNK + i] += d0
+            acc[38 * _CHUNK + i] += d1
+            acc[39 * _CHUNK + i] += d2
+            acc[40 * _CHUNK + i] += d3
+            acc[41 * _CHUNK + i] += d4
+            acc[42 * _CHUNK + i] += d5
+            acc[43 * _CHUNK + i] += d_ax
+            dry = r_b * nx * inv_as
+            dt = (w * (ry * dry) / rho - rho * nz) * inv_ss
+            dh = (rx * dry) * inv_rr
+            dfx = t_fx * dt + h_fx * dh
+            dfy = t_fy * dt + h_fy * dh
+            dmm = t_mm * dt + h_mm * dh
+            dam = a * dmm
+            d_fx = p_ * nz * dfx
+            d_fy = p_ * dfy
+            d_fz = -p_ * nx * dfx
+            d_mx = p_ * (-r_b * dfy * nz + dam * nx)
+            d_my = r_b * p_ * dfx
+            d_mz = p_ * (r_b * dfy * nx + dam * nz)
+            d0 = d_fx * inv_s if pos else 0.0
+            d1 = d_fy * inv_s if pos else 0.0
+            d2 = d_fz * inv_s if pos else 0.0
+            d3 = d_mx * inv_rs if pos else 0.0
+            d4 = d_my * inv_rs if pos else 0.0
+            d5 = d_mz * inv_rs if pos else 0.0
+            d_ax = g * (d_fy * sa + d_fz * ca) * inv_s if pos else 0.0
+            acc[44 * _CHUNK + i] += d0
+            acc[45 * _CHUNK + i] += d1
+            acc[46 * _CHUNK + i] += d2
+            acc[47 * _CHUNK + i] += d3
+            acc[48 * _CHUNK + i] += d4
+            acc[49 * _CHUNK + i] += d5
+            acc[50 * _CHUNK + i] += d_ax
+
+
+@_jit
+def evaluate_balls(x, u, u_ball, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
+                   grid, scale, want_jac, res, jac, dax, terms, per_contact):
+    """
+    Ball-groove residuals of all balls (``single_ball.BallGrooveModel.evaluate``).
+
+    ``evaluate_lanes`` with work arrays of its own (``newton`` passes its preallocated ones).
+    Returns the summed axial force [N].
+    """
+    return evaluate_lanes(x, u, u_ball, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
+                          coef_n, grid, scale, want_jac, res, jac, dax, terms, per_contact,
+                          np.empty(WORK_SIZE))
+
+
+@_jit
+def evaluate_lanes(x, u, u_ball, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
+                   grid, scale, want_jac, res, jac, dax, terms, per_contact, work):
+    """
+    Ball-groove residuals of all balls, the balls across the vector lanes.
+
+    The nut displacement at ball i is u + u_ball[i] (u_ball = 0 for a rigid nut and shaft;
+    the elastic load distribution gives each ball its own).
+    cst = (lambda, R_B, cos a, sin a, l, mu, free distance, r_gear); grid = (n_polar,
+    n_azimuth, dt, dh).  Writes res (N, 6) = [force, moment / R_B] / scale, jac (N, 6, 7),
+    dax (N, 7) = d(axial) / scale (only with ``want_jac``); terms (N, 10) = force (3),
+    moment (3), loss, nut torque, axial force, 0; per_contact (N, 4, 3) = load, loss and the
+    contact angle, which only ``contact_angles`` writes, on demand (no output of the model
+    reads it: 148 atan2 per solve at N = 37).  work (WORK_SIZE,): the passes' work arrays
+    (see above).  Returns the summed axial force [N].
+    """
+    lam, r_b, ca, sa, ell, mu, free, r_gear = (cst[0], cst[1], cst[2], cst[3], cst[4],
+                                               cst[5], cst[6], cst[7])
+    n_pol, n_az = int(grid[0]), int(grid[1])
+    dtm, dhm = grid[2], grid[3]
+    inv_s = 1.0 / scale
+    inv_rs = 1.0 / (r_b * scale)
+    axial_sum = 0.0
+    n = x.shape[0]
+    ev = work[:_EK_OFF]
+    ek = work[_EK_OFF:_EM_OFF]
+    em = work[_EM_OFF:_ACC_OFF]
+    acc = work[_ACC_OFF:_PCO_OFF]
+    pco = work[_PCO_OFF:_XIN_OFF]
+    xin = work[_XIN_OFF:]
+    for c0 in range(0, n, _CHUNK):
+        m = min(_CHUNK, n - c0)
+        for i in range(m):
+            b = c0 + i
             for j in range(6):
-                if j < 2:
-                    # Geometry (xi, zeta): through the normal, the load and the ellipse.
-                    ddx = lam if j == 0 else 0.0
-                    ddz = lam - ddx
-                    dn_l = nx * ddx + nz * ddz
-                    dnx = (ddx - nx * dn_l) * inv_dist
-                    dnz = (ddz - nz * dn_l) * inv_dist
-                    dq = 1.5 * kl * sq * dn_l
-                    da = a_over_3q * dq
-                    dvy = r_b * (oz - gs * ca) * dnx - r_b * ox * dnz
-                    dw = ox * dnx + (oz - gs * ca) * dnz
-                    drx = -rx * da * inv_as
-                    dry = (dvy - ry * da) * inv_as
-                else:
-                    # Rates (w_B, Omega): the velocities only.
-                    dnx = dnz = dq = da = 0.0
-                    dvx = dvy = dw = 0.0
-                    if j == 2:
-                        dvy = ell
-                    elif j == 3:
-                        dvy = -r_b * nz
-                        dw = nx
-                    elif j == 4:
-                        dvx = r_b
-                    else:
-                        dvy = r_b * nx
-                        dw = nz
-                    drx = dvx * inv_as
-                    dry = dvy * inv_as
-                dt = (w * (rx * drx + ry * dry) / rho - rho * dw) * inv_ss
-                dh = (rx * dry - ry * drx) * inv_rr
-                dfx = dvt[0] * dt + dvh[0] * dh
-                dfy = dvt[1] * dt + dvh[1] * dh
-                dmm = dvt[2] * dt + dvh[2] * dh
-                dp_ = mu * dq
-                dam = mm * da + a * dmm
-                d_fx = (-dq * nx - q * dnx + dp_ * fx * nz + p_ * nz * dfx + p_ * fx * dnz)
-                d_fy = dp_ * fy + p_ * dfy
-                d_fz = (-dq * nz - q * dnz - dp_ * fx * nx - p_ * nx * dfx - p_ * fx * dnx)
-                d_mx = (dp_ * (-r_b * fy * nz + am * nx)
-                        + p_ * (-r_b * (dfy * nz + fy * dnz) + dam * nx + am * dnx))
-                d_my = r_b * (dp_ * fx + p_ * dfx)
-                d_mz = (dp_ * (r_b * fy * nx + am * nz)
-                        + p_ * (r_b * (dfy * nx + fy * dnx) + dam * nz + am * dnz))
-                d6[0] = d_fx * inv_s
-                d6[1] = d_fy * inv_s
-                d6[2] = d_fz * inv_s
-                d6[3] = d_mx * inv_rs
-                d6[4] = d_my * inv_rs
-                d6[5] = d_mz * inv_rs
-                d_ax = g * (d_fy * sa + d_fz * ca) * inv_s
-                for r in range(6):
-                    jac[i, r, j] += d6[r]
-                dax[i, j] += d_ax
-                if j == 1 and g != 0.0:
-                    cu = -g * ca
+                xin[j * _CHUNK + i] = x[b, j]
+            xin[_XIN_U * _CHUNK + i] = u + u_ball[b]
+            for k in range(4):
+                xin[(_XIN_CX + k) * _CHUNK + i] = centres[b, k, 0]
+                xin[(_XIN_CZ + k) * _CHUNK + i] = centres[b, k, 1]
+        _contact_loads(xin, m, lam, ca, free, on_nut, k_load, ev)
+        _contact_kinematics(xin, m, r_b, sa, ca, ell, sign, on_nut, k_load, k_axis, dtm,
+                            dhm, ev, ek)
+        _contact_maps(coef_s, coef_n, m, n_pol, n_az, dtm, dhm, want_jac, ev, ek, em)
+        _contact_forces(m, r_b, sa, ca, ell, mu, r_gear, on_nut, ev, ek, em, acc, pco)
+        if want_jac:
+            _contact_jacobian(xin, m, lam, r_b, sa, ca, ell, mu, sign, on_nut, k_load,
+                              inv_s, inv_rs, ev, ek, em, acc)
+        for i in range(m):
+            b = c0 + i
+            for k in range(4):
+                axial_sum += pco[(2 * k + 1) * _CHUNK + i]
+                per_contact[b, k, 0] = ev[(6 * k + _Q) * _CHUNK + i]
+                per_contact[b, k, 1] = pco[2 * k * _CHUNK + i]
+            for r in range(9):
+                terms[b, r] = acc[r * _CHUNK + i]
+            terms[b, 9] = 0.0
+            for r in range(3):
+                res[b, r] = acc[r * _CHUNK + i] * inv_s
+                res[b, 3 + r] = acc[(3 + r) * _CHUNK + i] * inv_rs
+            if want_jac:
+                for j in range(7):
                     for r in range(6):
-                        jac[i, r, 6] += cu * d6[r]
-                    dax[i, 6] += cu * d_ax
-        for r in range(3):
-            res[i, r] = terms[i, r] * inv_s
-            res[i, 3 + r] = terms[i, 3 + r] * inv_rs
+                        jac[b, r, j] = acc[(_ACC_JAC + 7 * j + r) * _CHUNK + i]
+                    dax[b, j] = acc[(_ACC_JAC + 7 * j + 6) * _CHUNK + i]
     return axial_sum
 
 
@@ -372,13 +760,23 @@ def b2b_terms(x, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, want_jac, g_r, g_f, 
 @_jit
 def chains(n, rear, front):
     """Order balls chain by chain, rear first: (rear_of, front_of, seq, starts, ok)."""
-    rear_of = np.full(n, -1, dtype=np.int64)
-    front_of = np.full(n, -1, dtype=np.int64)
+    rear_of = np.empty(n, dtype=np.int64)
+    front_of = np.empty(n, dtype=np.int64)
+    seq = np.empty(n, dtype=np.int64)
+    starts = np.empty(n + 1, dtype=np.int64)
+    nc, ok = chains_into(n, rear, front, rear_of, front_of, seq, starts)
+    return rear_of, front_of, seq, starts[:nc + 1], ok
+
+
+@_jit
+def chains_into(n, rear, front, rear_of, front_of, seq, starts):
+    """``chains`` into the given arrays; returns (number of chains, ok)."""
+    for b in range(n):
+        rear_of[b] = -1
+        front_of[b] = -1
     for c in range(rear.shape[0]):
         rear_of[rear[c]] = c
         front_of[front[c]] = c
-    seq = np.empty(n, dtype=np.int64)
-    starts = np.empty(n + 1, dtype=np.int64)
     nc = 0
     pos = 0
     for b in range(n):
@@ -395,33 +793,151 @@ def chains(n, rear, front):
                 break
             cur = front[c]
     starts[nc] = pos
-    return rear_of, front_of, seq, starts[:nc + 1], pos == n
+    return nc, pos == n
+
+
+# --- The free balls' Newton blocks, solved across the vector lanes ---------------------------
+#
+# A ball in no B2B chain has a 6 x 6 block of its own (``newton_direction``): at N = 37 most
+# balls are free.  ``solve_free_blocks`` solves them _CHUNK at a time, one ball per lane,
+# by the elimination of ``compiled.gauss_solve`` with the same partial pivoting in each lane
+# (the pivot row chosen per lane, the swaps as selects).  A lane whose pivot is zero or not
+# finite is solved again by ``gauss_solve`` itself (its Levenberg-Marquardt retry).
+# fw (_FB_ROWS, _CHUNK): row 8 r + j of a lane's matrix row r: the block (j < 6), then the
+# two right-hand sides (the residual, the derivative in u); then per lane the pivot's size,
+# its row, the singular flag, 1 / pivot, the row factor and a sum.
+
+_FB_BIG, _FB_PIV, _FB_BAD, _FB_INV, _FB_FAC, _FB_SUM = 48, 49, 50, 51, 52, 53
+FB_ROWS = 54
+
+
+@_jit
+def _lanes_gauss6(fw, m):
+    """Solve the lanes' 6 x 6 systems with two right-hand sides in place (rows 8 r + 6, 7)."""
+    for col in range(6):
+        rc = 8 * col
+        for i in range(m):
+            fw[_FB_BIG, i] = abs(fw[rc + col, i])
+            fw[_FB_PIV, i] = col
+        for r in range(col + 1, 6):
+            for i in range(m):
+                v = abs(fw[8 * r + col, i])
+                take = v > fw[_FB_BIG, i]
+                fw[_FB_BIG, i] = v if take else fw[_FB_BIG, i]
+                fw[_FB_PIV, i] = r if take else fw[_FB_PIV, i]
+        for i in range(m):
+            big = fw[_FB_BIG, i]
+            bad = big == 0.0 or not (big < np.inf)
+            fw[_FB_BAD, i] = 1.0 if bad else fw[_FB_BAD, i]
+        for r in range(col + 1, 6):
+            for j in range(col, 8):
+                for i in range(m):
+                    swap = fw[_FB_PIV, i] == r
+                    a = fw[rc + j, i]
+                    b = fw[8 * r + j, i]
+                    fw[rc + j, i] = b if swap else a
+                    fw[8 * r + j, i] = a if swap else b
+        for i in range(m):
+            fw[_FB_INV, i] = 1.0 / fw[rc + col, i]
+        for r in range(col + 1, 6):
+            for i in range(m):
+                fw[_FB_FAC, i] = fw[8 * r + col, i] * fw[_FB_INV, i]
+            for j in range(col + 1, 8):
+                for i in range(m):
+                    fw[8 * r + j, i] -= fw[_FB_FAC, i] * fw[rc + j, i]
+    for col in range(5, -1, -1):
+        rc = 8 * col
+        for i in range(m):
+            fw[_FB_INV, i] = 1.0 / fw[rc + col, i]
+        for jr in range(6, 8):
+            for i in range(m):
+                fw[_FB_SUM, i] = fw[rc + jr, i]
+            for k in range(col + 1, 6):
+                for i in range(m):
+                    fw[_FB_SUM, i] -= fw[rc + k, i] * fw[8 * k + jr, i]
+            for i in range(m):
+                fw[rc + jr, i] = fw[_FB_SUM, i] * fw[_FB_INV, i]
+
+
+@_jit
+def solve_free_blocks(jac, res, free, nf, xs, fw, d, w, d0, w0):
+    """
+    Solve the blocks of the free balls free[:nf] into xs[k, :6, 7:9] (``newton_direction``).
+
+    free holds (ball, block index k) pairs; fw (FB_ROWS, _CHUNK) and the scalar solve's d,
+    w, d0, w0 are work arrays.
+    """
+    for c0 in range(0, nf, _CHUNK):
+        m = min(_CHUNK, nf - c0)
+        # Lanes up to a multiple of 8 (the vector width) hold identity blocks: no remainder.
+        mp = min(_CHUNK, (m + 7) // 8 * 8)
+        for i in range(mp):
+            if i < m:
+                b = free[c0 + i, 0]
+                for r in range(6):
+                    for j in range(6):
+                        fw[8 * r + j, i] = jac[b, r, j]
+                    fw[8 * r + 6, i] = res[b, r]
+                    fw[8 * r + 7, i] = jac[b, r, 6]
+            else:
+                for r in range(6):
+                    for j in range(8):
+                        fw[8 * r + j, i] = 1.0 if j == r else 0.0
+            fw[_FB_BAD, i] = 0.0
+        _lanes_gauss6(fw, mp)
+        for i in range(m):
+            b = free[c0 + i, 0]
+            k = free[c0 + i, 1]
+            if fw[_FB_BAD, i] == 0.0:
+                for r in range(6):
+                    xs[k, r, 7] = fw[8 * r + 6, i]
+                    xs[k, r, 8] = fw[8 * r + 7, i]
+                continue
+            for r in range(6):
+                for j in range(6):
+                    d[r, j] = jac[b, r, j]
+                w[r, 7] = res[b, r]
+                w[r, 8] = jac[b, r, 6]
+            gauss_solve(d, w, 6, 7, d0, w0)
+            for r in range(6):
+                xs[k, r, 7] = w[r, 7]
+                xs[k, r, 8] = w[r, 8]
 
 
 @_jit
 def newton_direction(seq, starts, rear_of, front_of, jac, dax, res, axial, cons, fhat, g_r,
-                     g_f, dgr_r, dgr_f, dgf_r, dgf_f, xs, ys, dx, df):
+                     g_f, dgr_r, dgr_f, dgf_r, dgf_f, xs, ys, dx, df, d, w, d0, w0, lm, free,
+                     fbw):
     """
     Newton step (dx, du, df) of the bordered block-tridiagonal system (module docstring).
 
-    xs (N, 7, 9), ys (N, 7, 2): work arrays.  Returns du; writes dx (N, 6), df (K,).
+    xs (N, 7, 9), ys (N, 7, 2), d, d0, lm (7, 7), w, w0 (7, 9), free (N, 2) (int),
+    fbw (FB_ROWS, _CHUNK): work arrays.  Returns du; writes dx (N, 6), df (K,).
     """
-    d = np.empty((7, 7))
-    w = np.empty((7, 9))
-    d0 = np.empty((7, 7))
-    w0 = np.empty((7, 9))
-    lm = np.empty((7, 7))
     acc_y = 0.0
     acc_w = 0.0
     c_u = 0.0
     for b in range(jac.shape[0]):
         c_u += dax[b, 6]
+    # The free balls' blocks first, all at once (solve_free_blocks); the chains below.
+    nf = 0
+    for k in range(seq.shape[0]):
+        b = seq[k]
+        if rear_of[b] < 0 and front_of[b] < 0:
+            free[nf, 0] = b
+            free[nf, 1] = k
+            nf += 1
+    solve_free_blocks(jac, res, free, nf, xs, fbw, d, w, d0, w0)
     for ch in range(starts.shape[0] - 1):
         k0, k1 = starts[ch], starts[ch + 1]
         for k in range(k0, k1):
             b = seq[k]
             c = rear_of[b]
             cp = front_of[b]
+            if c < 0 and cp < 0:
+                xs[k, 6, 7] = 0.0
+                xs[k, 6, 8] = 0.0
+                continue
             # Block k: rows = ball b's six equations and (if b is the rear of contact c)
             # equal orbit rates across c; columns = b's states and the force of c.  Without c
             # (a chain's end or a free ball) U = 0 and the block is the 6 x 6 ball alone.
@@ -517,11 +1033,15 @@ def add_b2b_forces(x, rear, front, g_r, g_f, fhat, res, cons):
 @_jit
 def _residual(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid,
               scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, res, jac, dax, terms,
-              per_contact, g_r, g_f, speed, dgr_r, dgr_f, dgf_r, dgf_f, cons, want_jac):
-    """Full residual (balls + B2B + axial + equal rates) and Jacobian; returns (axial, norm)."""
-    ax = evaluate_balls(x, u, np.zeros(x.shape[0]), centres, sign, cst, k_load, k_axis,
-                        on_nut, coef_s, coef_n, grid, scale, want_jac, res, jac, dax, terms,
-                        per_contact)
+              per_contact, g_r, g_f, speed, dgr_r, dgr_f, dgf_r, dgf_f, cons, want_jac, u_ball,
+              ew):
+    """
+    Full residual (balls + B2B + axial + equal rates) and Jacobian; returns (axial, norm).
+
+    u_ball (N,): zeros; ew (WORK_SIZE,): the evaluation's work array.
+    """
+    ax = evaluate_lanes(x, u, u_ball, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
+                        coef_n, grid, scale, want_jac, res, jac, dax, terms, per_contact, ew)
     b2b_terms(x, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, want_jac, g_r, g_f, speed, dgr_r,
               dgr_f, dgf_r, dgf_f)
     add_b2b_forces(x, rear, front, g_r, g_f, fhat, res, cons)
@@ -554,7 +1074,8 @@ def solve_active(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
     x, ua, fhat, ok, it, norm, terms, per_contact, speed = newton(
         x, ua, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid, scale,
         axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, np.zeros(0, dtype=np.int64),
-        np.zeros(0), np.zeros(0), tol, max_it, max_rate, disp_limit)
+        np.zeros(0), np.zeros(0), tol, max_it, max_rate, disp_limit, np.empty(0),
+        np.empty(0, dtype=np.int64))
     return x, ua[0], fhat, ok, it, norm, terms, per_contact, speed
 
 
@@ -794,10 +1315,10 @@ def _elastic_blocks(order, pos, rear, front, n):
 def _elastic_residual(x, v, cum, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
                       coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f,
                       order, comp_a, comp_b, res, jac, dax, terms, per_contact, g_r, g_f,
-                      speed, dgr_r, dgr_f, dgf_r, dgf_f, cons, tr, cp, want_jac):
+                      speed, dgr_r, dgr_f, dgf_r, dgf_f, cons, tr, cp, want_jac, ew):
     """Residuals of the elastic system (see above) and the Jacobian pieces; returns the norm."""
-    evaluate_balls(x, 0.0, v, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
-                   grid, scale, want_jac, res, jac, dax, terms, per_contact)
+    evaluate_lanes(x, 0.0, v, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid,
+                   scale, want_jac, res, jac, dax, terms, per_contact, ew)
     b2b_terms(x, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, want_jac, g_r, g_f, speed, dgr_r,
               dgr_f, dgf_r, dgf_f)
     add_b2b_forces(x, rear, front, g_r, g_f, fhat, res, cons)
@@ -976,12 +1497,54 @@ def elastic_direction(order, behind, ahead, wrap, rear, jac, dax, res, tr, cp, c
 
 
 @_jit
-def _alloc(n, kc):
-    """Work arrays of one evaluation: ``_residual`` uses 13, ``_elastic_residual`` all 15."""
-    return (np.empty((n, 6)), np.empty((n, 6, 7)), np.empty((n, 7)), np.empty((n, 10)),
-            np.empty((n, 4, 3)), np.empty((kc, 6)), np.empty((kc, 6)), np.empty(kc),
-            np.empty((kc, 6, 6)), np.empty((kc, 6, 6)), np.empty((kc, 6, 6)),
-            np.empty((kc, 6, 6)), np.empty(kc), np.empty(n), np.empty(n))
+def _carve(ws, off, shape):
+    """Return a view of ws[off:] of ``shape`` (C order) and the offset after it."""
+    size = 1
+    for d in shape:
+        size *= d
+    return ws[off:off + size].reshape(shape), off + size
+
+
+@_jit
+def _eval_arrays(ws, off, n, kc):
+    """
+    Carve the work arrays of one evaluation from ws at off: (arrays, next offset).
+
+    ``_residual`` uses 13 and u_ball (the 16th, zeros), ``_elastic_residual`` the first 15.
+    """
+    res, off = _carve(ws, off, (n, 6))
+    jac, off = _carve(ws, off, (n, 6, 7))
+    dax, off = _carve(ws, off, (n, 7))
+    terms, off = _carve(ws, off, (n, 10))
+    per_contact, off = _carve(ws, off, (n, 4, 3))
+    g_r, off = _carve(ws, off, (kc, 6))
+    g_f, off = _carve(ws, off, (kc, 6))
+    speed, off = _carve(ws, off, (kc,))
+    dgr_r, off = _carve(ws, off, (kc, 6, 6))
+    dgr_f, off = _carve(ws, off, (kc, 6, 6))
+    dgf_r, off = _carve(ws, off, (kc, 6, 6))
+    dgf_f, off = _carve(ws, off, (kc, 6, 6))
+    cons, off = _carve(ws, off, (kc,))
+    tr, off = _carve(ws, off, (n,))
+    cp, off = _carve(ws, off, (n,))
+    u_ball, off = _carve(ws, off, (n,))
+    for i in range(n):
+        u_ball[i] = 0.0
+    return (res, jac, dax, terms, per_contact, g_r, g_f, speed, dgr_r, dgr_f, dgf_r, dgf_f,
+            cons, tr, cp, u_ball), off
+
+
+@_jit
+def newton_work_size(n):
+    """Floats and integers of ``newton``'s work arrays for n balls (``work_arrays``)."""
+    per_eval = 80 * n + 158 * n
+    return 2 * per_eval + 141 * n + 3 * n + WORK_SIZE + 441 + FB_ROWS * _CHUNK, 7 * n + 1
+
+
+def work_arrays(n):
+    """Work arrays (float, int) that ``newton`` and its callers reuse for n balls."""
+    nf, ni = newton_work_size(n)
+    return np.empty(nf), np.empty(ni, dtype=np.int64)
 
 
 @_jit
@@ -995,31 +1558,32 @@ def solve_active_elastic(x, v, fhat, centres, sign, cst, k_load, k_axis, on_nut,
     """
     return newton(x, v, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid,
                   scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a,
-                  comp_b, tol, max_it, max_rate, disp_limit)
+                  comp_b, tol, max_it, max_rate, disp_limit, np.empty(0),
+                  np.empty(0, dtype=np.int64))
 
 
 @_jit
 def _evaluate(elastic, x, u, cum, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
               coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f,
-              order, comp_a, comp_b, w, want_jac):
+              order, comp_a, comp_b, w, want_jac, ew):
     """Residual norm (and the rigid axial residual) of ``newton``'s system into work ``w``."""
     if elastic:
         norm = _elastic_residual(x, u, cum, fhat, centres, sign, cst, k_load, k_axis, on_nut,
                                  coef_s, coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f,
                                  c_r, c_f, k_r, k_f, order, comp_a, comp_b, w[0], w[1], w[2],
                                  w[3], w[4], w[5], w[6], w[7], w[8], w[9], w[10], w[11], w[12],
-                                 w[13], w[14], want_jac)
+                                 w[13], w[14], want_jac, ew)
         return 0.0, norm
     return _residual(x, u[0], fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
                      grid, scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, w[0],
                      w[1], w[2], w[3], w[4], w[5], w[6], w[7], w[8], w[9], w[10], w[11], w[12],
-                     want_jac)
+                     want_jac, w[15], ew)
 
 
 @_jit
 def newton(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid,
            scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b,
-           tol, max_it, max_rate, disp_limit):
+           tol, max_it, max_rate, disp_limit, ws, wi):
     """
     Newton with trust region and halving line search for one active set, either load path.
 
@@ -1035,16 +1599,57 @@ def newton(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_
     n = x.shape[0]
     kc = rear.shape[0]
     elastic = order.shape[0] > 0
-    cur = _alloc(n, kc)
-    trial = _alloc(n, kc)
-    x = x.copy()
-    u = u.copy()
-    fhat = fhat.copy()
-    cum = np.empty(n if elastic else 0)
-    pos = np.empty(order.shape[0], dtype=np.int64)
+    nf, ni = newton_work_size(n)
+    if ws.shape[0] < nf or wi.shape[0] < ni:
+        ws = np.empty(nf)
+        wi = np.empty(ni, dtype=np.int64)
+    # Every work array is a view of ws / wi (measured: 45 allocations were a fifth of a warm
+    # step); what is returned is copied.
+    cur, off = _eval_arrays(ws, 0, n, kc)
+    trial, off = _eval_arrays(ws, off, n, kc)
+    nb = 9 if elastic else 7
+    xs, off = _carve(ws, off, (n, nb, nb + 2))
+    ys, off = _carve(ws, off, (n, nb, 2))
+    dx, off = _carve(ws, off, (n, 6))
+    xn, off = _carve(ws, off, (n, 6))
+    xw, off = _carve(ws, off, (n, 6))
+    du, off = _carve(ws, off, (u.shape[0],))
+    un, off = _carve(ws, off, (u.shape[0],))
+    uw, off = _carve(ws, off, (u.shape[0],))
+    ne = n if elastic else 0
+    dcum, off = _carve(ws, off, (ne,))
+    cn, off = _carve(ws, off, (ne,))
+    cum, off = _carve(ws, off, (ne,))
+    df, off = _carve(ws, off, (kc,))
+    fn, off = _carve(ws, off, (kc,))
+    fw_, off = _carve(ws, off, (kc,))
+    ew, off = _carve(ws, off, (WORK_SIZE,))
+    dd, off = _carve(ws, off, (7, 7))
+    dw, off = _carve(ws, off, (7, 9))
+    dd0, off = _carve(ws, off, (7, 7))
+    dw0, off = _carve(ws, off, (7, 9))
+    dlm, off = _carve(ws, off, (7, 7))
+    fbw, off = _carve(ws, off, (FB_ROWS, _CHUNK))
+    pos, io = _carve(wi, 0, (order.shape[0],))
+    rear_of, io = _carve(wi, io, (n,))
+    front_of, io = _carve(wi, io, (n,))
+    seq, io = _carve(wi, io, (n,))
+    starts, io = _carve(wi, io, (n + 1,))
+    free, io = _carve(wi, io, (n, 2))
+    for i in range(n):
+        for j in range(6):
+            xw[i, j] = x[i, j]
+    for i in range(u.shape[0]):
+        uw[i] = u[i]
+    for c in range(kc):
+        fw_[c] = fhat[c]
+        df[c] = 0.0
+    x = xw
+    u = uw
+    fhat = fw_
     if elastic:
-        evaluate_balls(x, 0.0, u, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
-                       grid, scale, False, cur[0], cur[1], cur[2], cur[3], cur[4])
+        evaluate_lanes(x, 0.0, u, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
+                       grid, scale, False, cur[0], cur[1], cur[2], cur[3], cur[4], ew)
         acc = 0.0
         for k in range(n):
             acc -= cur[3][order[k], 8] / scale
@@ -1057,23 +1662,14 @@ def newton(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_
         behind = np.full(0, -1, dtype=np.int64)
         ahead = behind
         wrap = -1
-    rear_of, front_of, seq, starts, ok_chain = chains(n, rear, front)
+    nc, ok_chain = chains_into(n, rear, front, rear_of, front_of, seq, starts)
+    starts = starts[:nc + 1]
     axial, norm = _evaluate(elastic, x, u, cum, fhat, centres, sign, cst, k_load, k_axis, on_nut,
                             coef_s, coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f,
-                            c_r, c_f, k_r, k_f, order, comp_a, comp_b, cur, True)
+                            c_r, c_f, k_r, k_f, order, comp_a, comp_b, cur, True, ew)
     if not (elastic or ok_chain):
-        return x, u, fhat, False, 0, norm, cur[3], cur[4], cur[7]
-    nb = 9 if elastic else 7
-    xs = np.empty((n, nb, nb + 2))
-    ys = np.empty((n, nb, 2))
-    dx = np.empty((n, 6))
-    du = np.empty(u.shape[0])
-    dcum = np.empty(cum.shape[0])
-    df = np.zeros(kc)
-    xn = np.empty((n, 6))
-    un = np.empty(u.shape[0])
-    cn = np.empty(cum.shape[0])
-    fn = np.empty(kc)
+        return (x.copy(), u.copy(), fhat.copy(), False, 0, norm, cur[3].copy(),
+                cur[4].copy(), cur[7].copy())
     it = 0
     while norm > tol and it < max_it:
         it += 1
@@ -1084,7 +1680,8 @@ def newton(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_
         else:
             du[0] = newton_direction(seq, starts, rear_of, front_of, cur[1], cur[2], cur[0],
                                      axial, cur[12], fhat, cur[5], cur[6], cur[8], cur[9],
-                                     cur[10], cur[11], xs, ys, dx, df)
+                                     cur[10], cur[11], xs, ys, dx, df, dd, dw, dd0, dw0, dlm,
+                                     free, fbw)
         # Trust region: near two-point contact the spin about the loaded diagonal is weakly
         # determined and a full step can run away.
         big_r = 0.0
@@ -1098,7 +1695,8 @@ def newton(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_
                 big_r = max(big_r, abs(dx[i, j]))
         big = max(big_r / max_rate, big_d / disp_limit)
         if not math.isfinite(big):
-            return x, u, fhat, False, it, norm, cur[3], cur[4], cur[7]
+            return (x.copy(), u.copy(), fhat.copy(), False, it, norm, cur[3].copy(),
+                    cur[4].copy(), cur[7].copy())
         step = 1.0 / big if big > 1.0 else 1.0
         nn = norm
         ax_n = axial
@@ -1119,14 +1717,15 @@ def newton(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_
             ax_n, nn = _evaluate(elastic, xn, un, cn, fn, centres, sign, cst, k_load, k_axis,
                                  on_nut, coef_s, coef_n, grid, scale, axial_load_n, rear, front,
                                  b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b, trial,
-                                 not last)
+                                 not last, ew)
             if math.isfinite(nn) and (nn < norm or nn <= tol):
                 break
             step *= 0.5
         if last and not nn <= tol:
             ax_n, nn = _evaluate(elastic, xn, un, cn, fn, centres, sign, cst, k_load, k_axis,
                                  on_nut, coef_s, coef_n, grid, scale, axial_load_n, rear, front,
-                                 b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b, trial, True)
+                                 b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b, trial, True,
+                                 ew)
         x, xn = xn, x
         u, un = un, u
         cum, cn = cn, cum
@@ -1134,14 +1733,15 @@ def newton(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_
         axial = ax_n
         norm = nn
         cur, trial = trial, cur
-    return x, u, fhat, norm <= tol, it, norm, cur[3], cur[4], cur[7]
+    return (x.copy(), u.copy(), fhat.copy(), norm <= tol, it, norm, cur[3].copy(),
+            cur[4].copy(), cur[7].copy())
 
 
 @_jit(exact=True)
 def solve_active_set(x, u, f_all, active, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
                      coef_n, grid, scale, axial_load_n, pair_rear, pair_front, b_r, b_f, c_r, c_f,
                      k_r, k_f, order, comp_a, comp_b, tol, max_it, max_rate, disp_limit,
-                     max_changes, budget):
+                     max_changes, budget, ws, wi):
     """
     ``EquilibriumSolver.solve`` compiled: Newton per active set, exact complementarity.
 
@@ -1170,7 +1770,7 @@ def solve_active_set(x, u, f_all, active, centres, sign, cst, k_load, k_axis, on
         x, u, f_hat, ok, it, norm, terms, per_contact, _ = newton(
             x, u, f0, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid, scale,
             axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b, tol,
-            min(max_it, left), max_rate, disp_limit)
+            min(max_it, left), max_rate, disp_limit, ws, wi)
         total_it += it
         f_all = np.zeros(p)
         f_all[idx] = f_hat
@@ -1205,7 +1805,7 @@ def solve_active_set(x, u, f_all, active, centres, sign, cst, k_load, k_axis, on
 def _solve_guess(x, u, forces, ring_active, pair_idx, centres, sign, cst, k_load, k_axis,
                  on_nut, coef_s, coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f, c_r,
                  c_f, k_r, k_f, order, comp_a, comp_b, tol, max_it, max_rate, disp_limit,
-                 max_changes, budget):
+                 max_changes, budget, ws, wi):
     """``solve_active_set`` from one guess (x, u, forces per ring pair [N]) of ``warm_solve``."""
     fg = forces[pair_idx]
     active = np.empty(pair_idx.shape[0], dtype=np.bool_)
@@ -1215,14 +1815,14 @@ def _solve_guess(x, u, forces, ring_active, pair_idx, centres, sign, cst, k_load
     return solve_active_set(x.copy(), u.copy(), fg / scale, active, centres, sign, cst, k_load,
                             k_axis, on_nut, coef_s, coef_n, grid, scale, axial_load_n, rear,
                             front, b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b, tol,
-                            max_it, max_rate, disp_limit, max_changes, budget)
+                            max_it, max_rate, disp_limit, max_changes, budget, ws, wi)
 
 
 @_jit(exact=True)
 def warm_solve(x, u, x_prev, u_prev, f_prev, d_psi_prev, forces, ring_active, d_psi, pair_idx,
                centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid, scale,
                axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b,
-               tol, max_it, max_rate, disp_limit, max_changes, budget):
+               tol, max_it, max_rate, disp_limit, max_changes, budget, ws, wi):
     """
     Solve a warm step (``whole_screw.WholeScrew._warm_solve_numpy``, its reference).
 
@@ -1253,40 +1853,56 @@ def warm_solve(x, u, x_prev, u_prev, f_prev, d_psi_prev, forces, ring_active, d_
     out = _solve_guess(gx[0], gu[0], gf[0], ring_active, pair_idx, centres, sign, cst, k_load,
                        k_axis, on_nut, coef_s, coef_n, grid, scale, axial_load_n, rear, front,
                        b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b, tol, max_it,
-                       max_rate, disp_limit, max_changes, budget)
+                       max_rate, disp_limit, max_changes, budget, ws, wi)
     iterations = out[6]
     if n_guess == 2 and not (out[4] or out[5]):
         out = _solve_guess(gx[1], gu[1], gf[1], ring_active, pair_idx, centres, sign, cst,
                            k_load, k_axis, on_nut, coef_s, coef_n, grid, scale, axial_load_n,
                            rear, front, b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b, tol,
-                           max_it, max_rate, disp_limit, max_changes, budget)
+                           max_it, max_rate, disp_limit, max_changes, budget, ws, wi)
         iterations += out[6]
     speed = pair_speed(out[0], rear, front, b_r, b_f)
     return out, iterations, speed
 
 
+# Rows of warm_step's output block (rows, N): azimuth, phi, theta, orbit ratio, omega_B,
+# axial force on the nut, B2B force per ring pair, the forces of the active pairs in chain
+# order (first ones), contact loads (4 rows).
+STEP_ROWS = 12
+
+
 @_jit(exact=True)
-def warm_step(azimuth, ratio, d_psi, track_start, sign, geo, x, u, x_prev, u_prev, f_prev,
-              d_psi_prev, forces, ring_active, cst, k_load, k_axis, on_nut, coef_s, coef_n,
-              grid, scale, axial_load_n, b_r, b_f, c_r, c_f, k_r, k_f, tol, max_it, max_rate,
-              disp_limit, max_changes, budget, omega_n):
+def warm_step(azimuth, ratio, x, x_prev, f_prev, forces, ring_active, par, coef_s, coef_n, ws,
+              wi, d_psi, track_start, sign, u, u_prev, d_psi_prev, scale, axial_load_n, tol,
+              max_it, max_rate, disp_limit, max_changes, budget, omega_n):
     """
     Take a whole warm step of a rigid nut without lead errors in one call (``WholeScrew.step``).
 
     ``advance``, ``warm_solve`` and ``step_totals`` in turn, with the arrays between them
     never leaving compiled code, and the step's per-ball outputs built here: the same
     arithmetic as those three calls and the numpy around them (exact, so the same rounding).
-    geo = (separation, loop length, gap tolerance, theta amplitude, cycles, phase, offset,
-    R_G - R_B, beta0); u, u_prev: the rigid nut's displacement; omega_n: the nut velocity.
-    Measured need (issue 20): the three calls and the Python around them (argument packing,
-    the Solution and its dict, the scatters) cost about 40 us of a 144 us step at N = 37.
-    Returns (converged, budget exhausted, iterations, residual norm, azimuth, phi, theta, x,
-    u, B2B force and active per ring pair, orbit ratio and omega_B per ball, contact loads
-    (N, 4), each ball's axial force on the nut, rear, front and force of the active pairs in
-    chain order, sums of the ball-groove losses, of the nut torques and of the B2B force
-    times slip speed, largest contact load).  Nothing is returned of a failed solve but its
-    flags and iterations: the caller redoes the geometry and cold-starts.
+    par: the constants packed once per direction (``pack_step_constants``); ws, wi: the work
+    arrays (``work_arrays``); u, u_prev: the rigid nut's displacement; omega_n: the nut
+    velocity.  Measured need: a call with 37 arguments that returned 13 arrays cost 9 us of
+    a 50 us step at N = 37 (the same call with 10 arguments and scalars back: 0.5 us).
+    Returns (converged, budget exhausted, iterations, residual norm, u, sums of the
+    ball-groove losses, of the nut torques and of the B2B force times slip speed, largest
+    contact load, the output block (STEP_ROWS, N), x (N, 6), active per ring pair, rear and
+    front of the active pairs in chain order (2, K)).  Of a failed solve only its flags and
+    iterations mean anything: the caller redoes the geometry and cold-starts.
     """
+    geo = par[0:9]
+    cst = par[9:17]
+    k_load = par[17:21]
+    k_axis = par[21:25]
+    on_nut = par[25:29]
+    grid = par[29:33]
+    b_r = par[33:51].reshape((3, 6))
+    b_f = par[51:69].reshape((3, 6))
+    c_r = par[69:75]
+    c_f = par[75:81]
+    k_r = par[81:99].reshape((6, 3))
+    k_f = par[99:117].reshape((6, 3))
     az, phi, theta, centres, pair_idx, rear, front = advance(
         azimuth, ratio, d_psi, geo[0], geo[1], track_start, geo[2], sign, geo[3], geo[4],
         geo[5], geo[6], geo[7], geo[8])
@@ -1300,31 +1916,40 @@ def warm_step(azimuth, ratio, d_psi, track_start, sign, geo, x, u, x_prev, u_pre
         x, u_arr, x_prev, up_arr, f_prev, d_psi_prev, forces, ring_active, d_psi, pair_idx,
         centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid, scale, axial_load_n,
         rear, front, b_r, b_f, c_r, c_f, k_r, k_f, no_order, no_comp, no_comp, tol, max_it,
-        max_rate, disp_limit, max_changes, budget)
+        max_rate, disp_limit, max_changes, budget, ws, wi)
     xs, us, f_all, active, ok, exhausted, _, norm, terms, per_contact = out
     n = xs.shape[0]
     f = f_all * scale
     loss_sum, torque_sum, b2b_sum, load_max, new_ratio, new_active, new_forces, act \
         = step_totals(terms[:, 6], terms[:, 7], per_contact[:, :, 0], f, speed, active,
                       pair_idx, xs, sign)
-    omega_b = np.empty(n)
-    axial = np.empty(n)
-    loads = np.empty((n, 4))
+    blk = np.empty((STEP_ROWS, n))
     for i in range(n):
-        omega_b[i] = new_ratio[i] * omega_n
-        axial[i] = -terms[i, 8]
+        blk[0, i] = az[i]
+        blk[1, i] = phi[i]
+        blk[2, i] = theta[i]
+        blk[3, i] = new_ratio[i]
+        blk[4, i] = new_ratio[i] * omega_n
+        blk[5, i] = -terms[i, 8]
+        blk[6, i] = new_forces[i]
         for k in range(4):
-            loads[i, k] = per_contact[i, k, 0]
-    g_rear = np.empty(act.shape[0], dtype=np.int64)
-    g_front = np.empty(act.shape[0], dtype=np.int64)
-    g_force = np.empty(act.shape[0])
+            blk[8 + k, i] = per_contact[i, k, 0]
+    groups = np.empty((2, act.shape[0]), dtype=np.int64)
     for j in range(act.shape[0]):
-        g_rear[j] = rear[act[j]]
-        g_front[j] = front[act[j]]
-        g_force[j] = f[act[j]]
-    return (ok, exhausted, iterations, norm, az, phi, theta, xs, us[0], new_forces, new_active,
-            new_ratio, omega_b, loads, axial, g_rear, g_front, g_force, loss_sum, torque_sum,
-            b2b_sum, load_max)
+        groups[0, j] = rear[act[j]]
+        groups[1, j] = front[act[j]]
+        blk[7, j] = f[act[j]]
+    return (ok, exhausted, iterations, norm, us[0], loss_sum, torque_sum, b2b_sum, load_max, blk,
+            xs, new_active, groups)
+
+
+def pack_step_constants(geo, cst, k_load, k_axis, on_nut, grid, b_r, b_f, c_r, c_f, k_r, k_f):
+    """Pack ``warm_step``'s constant arrays into its one ``par`` (117 floats)."""
+    par = np.concatenate([np.ravel(a) for a in (geo, cst, k_load, k_axis, on_nut, grid, b_r, b_f,
+                                                c_r, c_f, k_r, k_f)]).astype(float)
+    if par.shape != (117,):
+        raise ValueError(f"warm_step constants: {par.shape[0]} values, 117 expected")
+    return par
 
 
 def pack_constants(ball, extra_oversize_m=0.0):

@@ -146,6 +146,9 @@ class WholeScrew:
         self.separation = self.model.b2b.separation
         self.max_contact_load_n = self.model.max_contact_load_n()
         self.max_axial_load_n = self.model.max_axial_load_n(self.n)
+        # The compiled solve's work arrays, reused step after step (kernel.work_arrays).
+        self._work = kernel.work_arrays(self.n)
+        self._step_par = {}         # kernel.warm_step's packed constants per direction
         # Fixed by the config, read at every step.
         self._preload = self.model.preload_load() > 0.0
         e, b = config.errors, self.model.ball
@@ -162,6 +165,13 @@ class WholeScrew:
                 f"{math.degrees(self.n * self.separation):.1f} deg > loop "
                 f"{math.degrees(self.loop):.1f} deg")
         self.reset()
+
+    def __copy__(self):
+        """Return a shallow copy with work arrays of its own (it may step in another thread)."""
+        new = object.__new__(type(self))
+        new.__dict__.update(self.__dict__)
+        new._work = kernel.work_arrays(self.n)
+        return new
 
     @property
     def occupancy(self):
@@ -349,26 +359,33 @@ class WholeScrew:
             raise ValueError(f"warm solve: state {x.shape}, previous {xp.shape}, forces "
                              f"{fp.shape} for {self.n} balls")
         scale = self.model.force_scale(self.n, axial_load_n)
-        out = kernel.warm_step(
-            self.azimuth, self.ratio, d_psi, self.nut_angle + self.config.track.track_start_rad,
-            sign, self._geo, x, float(u), xp, float(up), fp, float(dp), self._forces,
-            self._active, *solver.kernel_constants(), scale, axial_load_n,
-            *solver.b2b.linear_terms(sign), tol, st.max_iterations, st.max_step_rate,
-            solver.displacement_limit(scale), st.max_active_set_changes,
-            budget if budget else -1, omega_n)
-        ok, exhausted, iterations = out[0], out[1], int(out[2])
+        consts = solver.kernel_constants()
+        key = (sign, id(consts[0]))
+        par = self._step_par.get(key)
+        if par is None:
+            par = kernel.pack_step_constants(self._geo, *consts[:4], consts[6],
+                                             *solver.b2b.linear_terms(sign))
+            self._step_par = {key: par, "cst": consts[0]}     # keeps consts[0] alive (its id)
+        ok, exhausted, iterations, _, u, loss_sum, torque_sum, b2b_sum, load_max, blk, x, \
+            active, groups = kernel.warm_step(
+                self.azimuth, self.ratio, x, xp, fp, self._forces, self._active, par,
+                consts[4], consts[5], *self._work, d_psi,
+                self.nut_angle + self.config.track.track_start_rad, sign, float(u), float(up),
+                float(dp), scale, axial_load_n, tol, st.max_iterations, st.max_step_rate,
+                solver.displacement_limit(scale), st.max_active_set_changes,
+                budget if budget else -1, omega_n)
+        iterations = int(iterations)
         if not (ok or exhausted):
             return None, iterations
-        (_, _, _, _, self.azimuth, phi, theta, x, u, forces, self._active, self.ratio, omega_b,
-         loads, axial, g_rear, g_front, g_force, loss_sum, torque_sum, b2b_sum, load_max) = out
         # Real-time mode: an unfinished iterate is kept too, converged = False.
         self._prev = (self._state[0], self._state[1], self._forces, d_psi)
         self._state = (x, u, sign, load_sign)
-        self._forces = forces
+        self.azimuth, self.ratio, self._forces = blk[0], blk[3], blk[6]
+        self._active = active
+        rear, front = groups[0].tolist(), groups[1].tolist()
         return self._result(omega_n, axial_load_n, loss_sum, torque_sum, b2b_sum, load_max,
-                            bool(ok), iterations, phi, theta, omega_b, loads, axial,
-                            _groups(g_rear.tolist(), g_front.tolist(), g_force.tolist()),
-                            t0), iterations
+                            bool(ok), iterations, blk[1], blk[2], blk[4], blk[8:12].T, blk[5],
+                            _groups(rear, front, blk[7, :len(rear)].tolist()), t0), iterations
 
     def _warm_solve_numpy(self, d_psi, centres, sign, axial_load_n, scale, pair_idx, rear, front,
                           budget, elastic, tol):
@@ -424,7 +441,7 @@ class WholeScrew:
             sign, *solver.kernel_constants(), scale, axial_load_n, rear, front,
             *solver.b2b.linear_terms(sign), *path, tol, st.max_iterations,
             st.max_step_rate, solver.displacement_limit(scale), st.max_active_set_changes,
-            budget if budget else -1)
+            budget if budget else -1, *self._work)
         x, u, f_all, active, ok, exhausted, it, norm, terms, per_contact = out
         sol = Solution(x=x, u=u if elastic is not None else float(u[0]), forces=f_all * scale,
                        active=active, converged=bool(ok), iterations=int(it),
