@@ -31,6 +31,9 @@ import numpy as np
 MOVING_FRACTION = 0.02
 # Constant-speed samples for LuGre's steady state: |alpha| below this share of the largest.
 STEADY_ACCEL_FRACTION = 0.05
+# ... and |omega| above this share of the largest: the start from rest (the loop building up
+# torque against static friction) is not a point of the steady curve.
+STEADY_SPEED_FRACTION = 0.05
 # sigma_0 is searched over the pre-sliding travels g / sigma_0 in [1e-7, 1] rad.
 PRESLIDING_RANGE_RAD = (1e-7, 1.0)
 # The cost of the best sigma_0 must be at least this share below that of the stiffest
@@ -147,8 +150,9 @@ def fit_lugre(cal, inertia_kg_m2, max_evaluations=400):
     f = cal.friction(inertia_kg_m2)
     w = cal.velocity_rad_s
     a = cal.accel_rad_s2
-    m = cal.moving() & (np.abs(a) <= STEADY_ACCEL_FRACTION * max(float(np.abs(a).max()),
-                                                                   1e-12))
+    w_abs = np.abs(w)
+    m = (w_abs >= STEADY_SPEED_FRACTION * max(float(w_abs.max()), 1e-12)) \
+        & (np.abs(a) <= STEADY_ACCEL_FRACTION * max(float(np.abs(a).max()), 1e-12))
     if m.sum() < 8:
         m = cal.moving()
     wm, fm = w[m], f[m]
@@ -162,8 +166,11 @@ def fit_lugre(cal, inertia_kg_m2, max_evaluations=400):
         return np.sign(wm) * (tc + dts * np.exp(-(wm / ws) ** 2)) + s2 * wm + offset - fm
 
     tc0 = max(float(cv[1]), 1e-6)
-    sol = least_squares(resid, [tc0, 0.1 * tc0, 0.1 * wmax, max(float(cv[0]), 0.0)],
-                        bounds=([0.0, 0.0, 1e-3 * wmax, 0.0],
+    wmin = float(np.abs(wm).min())
+    # the Stribeck speed is not sought below half the slowest steady speed: the data say
+    # nothing about a rise there
+    sol = least_squares(resid, [tc0, 0.1 * tc0, max(0.1 * wmax, wmin), max(float(cv[0]), 0.0)],
+                        bounds=([0.0, 0.0, 0.5 * wmin, 0.0],
                                 [np.inf, np.inf, wmax, np.inf]), max_nfev=max_evaluations)
     tc, dts, ws, s2 = (float(x) for x in sol.x)
     base = LuGre(1.0, s2, tc, tc + dts, ws, offset_nm=offset)

@@ -1,6 +1,8 @@
 """
-What a servo engineer reads off a run: following error, reversal glitches, cruise ripple,
-and for the circle test the ballbar's radial deviation and quadrant spikes.
+What a servo engineer reads off a run.
+
+Following error, reversal glitches, cruise ripple, and for the circle test the ballbar's
+radial deviation and quadrant spikes.
 
 All lengths are the nut's axial travel, e = phi * lead / (2 pi), in micrometres at the
 edge (``*_um``).

@@ -19,9 +19,9 @@ from bb_friction_ros.servo.metrics import circle_path, to_um
 CSV_COLUMNS = ("t_s", "nut_angle_ref_rad", "nut_angle_rad", "torque_command_nm",
                "torque_friction_nm", "nut_angle_measured_rad", "nut_velocity_rad_s",
                "torque_feedforward_nm", "following_error_um")
-# The ballbar plot magnifies the radial deviation so that this many micrometres span the
-# plot's inner half radius (ballbar software draws at a fixed scale per division).
-BALLBAR_RING_UM = 5.0
+# The ballbar plot's scale per division [um]: the smallest of these that puts the largest
+# radial deviation within two divisions of the nominal circle (ballbar software's steps).
+BALLBAR_DIVISIONS_UM = (0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0)
 
 
 def _axis_columns(run, lead_m):
@@ -197,31 +197,47 @@ def write_plots(out, reference, results, lead_m):
         ballbar_plot(out / "ballbar.png", reference, results)
 
 
+def ballbar_division_um(largest_um):
+    """Return the plot's micrometres per division for a largest |radial deviation| [um]."""
+    for d in BALLBAR_DIVISIONS_UM:
+        if largest_um <= 2.0 * d:
+            return d
+    return BALLBAR_DIVISIONS_UM[-1]
+
+
 def ballbar_plot(path, reference, results):
-    """Draw the circle test as a ballbar plot: the radial deviation magnified on a polar axis."""
+    """
+    Draw the circle test as ballbar software does: the radial deviation magnified.
+
+    The nominal circle is the middle ring; each ring out (in) is one division more (less)
+    radius, the division chosen by ``ballbar_division_um``; beyond two divisions the path is
+    drawn at the plot's edge.
+    """
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from bb_friction_ros.servo.metrics import feed_mask
     t = reference.t_s
-    fig = plt.figure(figsize=(6.5, 6.5))
-    ax = fig.add_subplot(projection="polar")
-    scale = 0.5 / BALLBAR_RING_UM       # plot radius per um, around the nominal circle at 1
+    paths = {}
     for name, runs in results.items():
         x, y, xr, yr = circle_path(t, runs, reference.leads_m)
         feed = feed_mask(t, xr, yr)
-        dr = (np.hypot(x, y) - reference.radius_m) * 1e6
-        ax.plot(np.arctan2(y[feed], x[feed]), 1.0 + scale * dr[feed], lw=0.9, label=name)
+        paths[name] = (np.arctan2(y[feed], x[feed]),
+                       (np.hypot(x[feed], y[feed]) - reference.radius_m) * 1e6)
+    div = ballbar_division_um(max(float(np.abs(dr).max()) for _, dr in paths.values()))
+    fig = plt.figure(figsize=(6.5, 6.8))
+    ax = fig.add_subplot(projection="polar")
+    for name, (theta, dr) in paths.items():
+        ax.plot(theta, np.clip(2.0 + dr / div, 0.0, 4.0), lw=0.9, label=name)
     ring = np.linspace(0, 2 * np.pi, 361)
-    ax.plot(ring, np.ones_like(ring), color="k", lw=0.6)
-    ax.set_rmax(1.0 + scale * 2 * BALLBAR_RING_UM)
+    ax.plot(ring, np.full_like(ring, 2.0), color="k", lw=0.6)
     ax.set_rmin(0.0)
-    ax.set_rticks([1.0 - 0.5, 1.0, 1.5])
-    ax.set_yticklabels([f"-{BALLBAR_RING_UM:g} um", "0", f"+{BALLBAR_RING_UM:g} um"],
-                       fontsize=7)
-    ax.set_title(f"circle r = {reference.radius_m * 1e3:g} mm: radial deviation, "
-                 f"{BALLBAR_RING_UM:g} um per division", fontsize=9)
-    ax.legend(fontsize=6, loc="lower left", bbox_to_anchor=(-0.15, -0.12), ncol=3)
+    ax.set_rmax(4.0)
+    ax.set_rticks([0.0, 1.0, 2.0, 3.0, 4.0])
+    ax.set_yticklabels([f"{(k - 2) * div:+g}" for k in range(5)], fontsize=7)
+    ax.set_title(f"ISO 230-4 circle, r = {reference.radius_m * 1e3:g} mm: radial deviation, "
+                 f"{div:g} um per division", fontsize=9)
+    ax.legend(fontsize=6, loc="upper center", bbox_to_anchor=(0.5, -0.06), ncol=3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

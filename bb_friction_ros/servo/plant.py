@@ -14,11 +14,12 @@ torque an instant into the motion in either direction).
 
 Integration (``Plant.advance``): a servo period is cut into ``substeps``; over each the
 torques are held, so the motion is exactly a constant acceleration (the update is exact, not
-an Euler step).  The friction is held from the servo sample (``friction_update: sample``,
-the model answered at every servo sample along the simulated motion) or re-answered at
-every sub-step (``substep``).  What remains is the error of holding the friction over its
-interval: its change with velocity (c delta-omega) and angle (the ball-to-ball ripple); it is
-measured against a finer run (docs/servo_test.md, test/servo/test_plant.py).
+an Euler step).  The friction is re-answered by the model at every sub-step
+(``friction_update: substep``, the default: along the simulated motion, every servo sample
+included) or held from the servo sample (``sample``).  What remains is the error of holding
+the friction over its interval: its change with velocity (c delta-omega, the Stribeck drop
+at a breakaway) and angle (the ball-to-ball ripple); it is measured against a finer run
+(docs/servo_test.md, test/servo/test_plant.py).
 
 Stick at standstill (stick-slip switch, no chatter): when the velocity crosses zero inside a
 sub-step, the crossing time is solved exactly and the axis stops there.  At rest it stays

@@ -159,8 +159,8 @@ class Setup:
         w_ref = axis.ref_velocity(t)
         a_ref = axis.ref_accel(t)
         n = t.size
-        out = {k: np.zeros(n) for k in ("angle", "velocity", "meas", "cmd", "applied",
-                                         "friction", "ff")}
+        out = {k: np.zeros(n)
+               for k in ("angle", "velocity", "meas", "cmd", "applied", "friction", "ff")}
         period = loop.period_s
         counts = loop.encoder_counts_per_rev
         ref = axis.ref_rad
@@ -317,7 +317,7 @@ def relative_errors(t_s, run, axis):
         return float(np.linalg.norm(sim - meas) / d) if d > 0.0 else math.nan
     meas = axis.meas_rad
     a0 = float(meas[0])
-    return {"angle": rel(run.angle_rad - a0, meas - a0),
+    return {"angle": rel(run.measured_rad - a0, meas - a0),
             "velocity": rel(np.gradient(run.measured_rad, t_s), np.gradient(meas, t_s)),
             "torque": rel(run.applied_nm, axis.torque_meas_nm)}
 

@@ -32,8 +32,8 @@ PLANT = "plant"
 MODEL = "model"
 CALIBRATION = "calibration"
 SECTIONS = (LOOP, PLANT, MODEL, CALIBRATION)
-# plant.friction_update choices: the plant's model answered once per servo sample (the
-# default) or at every sub-step (the fine run the integrator's error is measured against)
+# plant.friction_update choices: the plant's model answered at every sub-step (the default:
+# it costs little, the model steps by nut rotation either way) or once per servo sample
 FRICTION_UPDATES = ("sample", "substep")
 BALL_STATES = ("fresh", "run_in")
 
@@ -88,7 +88,7 @@ class PlantSettings:
     substeps: int = field(8, "1", "integration sub-steps per servo period (each exact for "
                           "its held torques; a velocity zero crossing is found inside one)",
                           lo=1, hi=1000)
-    friction_update: str = dataclasses.field(default="sample")
+    friction_update: str = dataclasses.field(default="substep")
     model_rate_hz: float = field(1000.0, "Hz", "the plant model's time floor: it steps at "
                                  "least this often while the axis moves", lo=1.0, hi=1e6)
     model_step_deg: float = field(0.36, "deg", "nut rotation between the plant model's steps",
