@@ -77,7 +77,7 @@ def run_servo_test(recording, loop_path, config, out, modes=(), progress=True, p
         m["counters"] = counters
         m["cpu_s"] = cpu[name]
         m["simulated_s_per_cpu_s"] = duration * len(runs) / cpu[name] if cpu[name] else None
-        if name == "node" and hasattr(runs, "coverage"):
+        if name == "node":
             m["node"] = runs.coverage
         summary["modes"][name] = m
     if has_measured:

@@ -125,3 +125,21 @@ def test_bad_input_exits_2_naming_the_field(tmp_path, capsys, loop_file, short_s
     assert code == 2, err
     assert needle in err
     assert not out.exists()                 # nothing written before the inputs are checked
+
+
+def test_node_mode_runs_the_real_node_in_real_time_and_measures_its_coverage(
+        tmp_path, capsys, loop_file, axis_model):
+    spec = _write(tmp_path / "s.yaml", "reference:\n  kind: reversal\n  speeds_rev_s: [1.0]\n"
+                  "  stroke_rev: 0.25\n  accel_rev_s2: 20.0\n")
+    out = tmp_path / "out"
+    code, _, err = run(capsys, "servo-test", spec, "--loop", loop_file, "--config",
+                       axis_model, "--out", out, "--modes", "node", "--no-progress",
+                       "--no-plots")
+    assert code == 0, err
+    s = json.loads((out / "summary.json").read_text())
+    node = s["modes"]["node"]["node"]
+    n = len(list(csv.reader(open(out / "modes" / "node.csv")))) - 1
+    assert node["cycles"] == n and sum(node["statuses"].values()) == n
+    assert 0.0 <= node["coverage"] <= 1.0 and node["profiles"] > 0
+    assert node["diagnostics"]["received_nut_state"] > 0
+    assert s["modes"]["node"]["counters"]["feedforward_wrong_sign"] == 0
