@@ -269,13 +269,14 @@ def b2b_case(work, plant, model, case, spec, tag, modes=MODES, **loop):
 
 def print_table(title, results, circle=False):
     """Print the modes x cases table."""
-    print(title)
-    cols = ("reversal glitch max", "cruise RMS", "circle range") if circle else \
-        ("reversal glitch max", "cruise RMS", "following error RMS")
+    print(title + " (glitch: reversal glitch max; cruise: cruise RMS; "
+          + ("radial: the circle's radial deviation range)" if circle
+             else "FE RMS: following error RMS)"))
+    cols = ("glitch", "cruise", "radial") if circle else ("glitch", "cruise", "FE RMS")
     keys = ("reversal_glitch_max_um", "cruise_rms_um", "circle") if circle else \
         ("reversal_glitch_max_um", "cruise_rms_um", "following_error_rms_um")
     print("  " + f"{'':27s}" + "".join(f"{name:>30s}" for name, _ in results))
-    print("  " + " " * 27 + "".join(f"{c[:9]:>10s}" for _ in results for c in cols))
+    print("  " + " " * 27 + "".join(f"{c:>10s}" for _ in results for c in cols))
     for mode in results[0][1]["modes"]:
         line = f"  {mode:27s}"
         for _, s in results:
