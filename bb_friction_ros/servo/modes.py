@@ -25,8 +25,6 @@ feedforward opposes the plant's actual motion is counted beside it (``against_mo
 a commanded feedforward may lead a reversal by design).
 """
 
-import math
-
 from bb_friction_ros.servo.baselines import LuGreState
 from bb_friction_ros.runner import InputSample, ModelRunner
 
@@ -148,15 +146,3 @@ def model_runner(path, settings):
                          settings.model_step_deg, max(settings.model_step_deg, 14.4))
     runner.warm_up(cfg.operation.axial_load_n, cfg.operation.nut_velocity_rad_s)
     return runner
-
-
-def direction_changes(values):
-    """Return the number of sign changes of a sequence, zeros skipped (for summaries)."""
-    last, n = 0.0, 0
-    for v in values:
-        s = math.copysign(1.0, v) if v != 0.0 else 0.0
-        if s != 0.0:
-            if last != 0.0 and s != last:
-                n += 1
-            last = s
-    return n

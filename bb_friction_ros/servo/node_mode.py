@@ -11,6 +11,9 @@ would.  The node's answers arrive when they arrive: a cycle whose profile does n
 its angle gets what the interpolator's rules give (0 N m when empty, stale, reversed or at
 standstill; the last point beyond the profile).
 
+The axial load is the recording's first (published once, before the run): a run whose
+load varies is not fed its changes.
+
 Coverage: the share of cycles whose measured angle lies inside a valid profile (status
 ``inside``); the other statuses are counted by name.  Late cycles (the simulation of one
 period took longer than the period) are counted too: the run is then slower than real
