@@ -3,10 +3,10 @@ The servo test's outputs: ``modes/<mode>.csv``, ``summary.json``, plots and ``re
 
 ``modes/<mode>.csv`` columns: ``t_s`` (from the recording's first row),
 ``nut_angle_ref_rad``, ``nut_angle_rad`` (the simulated axis), ``torque_command_nm`` (the
-controller's output after the limit, command offset included), ``torque_friction_nm`` (the plant's friction; the held torque at rest),
-then ``nut_angle_measured_rad`` (the encoder), ``nut_velocity_rad_s``,
-``torque_feedforward_nm`` and ``following_error_um``.  A circle's Y axis follows with the
-same names prefixed ``y_``, and ``radial_deviation_um``.
+controller's output after the limit, command offset included), ``torque_friction_nm`` (the
+plant's friction; the held torque at rest), then ``nut_angle_measured_rad`` (the encoder),
+``nut_velocity_rad_s``, ``torque_feedforward_nm`` and ``following_error_um``.  A circle's Y
+axis follows with the same names prefixed ``y_``, and ``radial_deviation_um``.
 """
 
 import json
