@@ -1,6 +1,6 @@
 """Studies and speed of bb-friction servo-test; prints tables, asserts nothing.
 
-Run: .venv/bin/python bench/bench_servo.py [--part exact|speed|measured|b2b|sweep|all]
+Run: .venv/bin/python bench/bench_servo.py [--part exact|speed|measured|b2b|sweep|node|all]
                                            [--workdir DIR] [--repeats 3]
 
 0. exact: the none mode against closed-loop recordings of the same plant and loop made with
@@ -21,7 +21,9 @@ Run: .venv/bin/python bench/bench_servo.py [--part exact|speed|measured|b2b|swee
    fresh) arrangements;
 4. sweep: one factor at a time from the b2b case (run-in, unknown arrangement): theta, axial
    load, stroke, velocity-loop bandwidth, servo rate; the product's model is the plant's
-   physics with the terms calibrated in part 3.
+   physics with the terms calibrated in part 3;
+5. node: the node mode's profile coverage (the share of servo cycles whose measured angle lies
+   inside a valid profile) and its following error against the model mode's, in one run.
 """
 
 import argparse
@@ -163,6 +165,34 @@ def part_exact(work):
             print(f"  {label:12s} {sub:9d} {update:>9s} {e['angle']:10.2e} "
                   f"{e['velocity']:10.2e} {e['torque']:10.2e} {d * 0.02 / 2 / math.pi * 1e6:9.3f}",
                   flush=True)
+
+
+# --- 5. the node mode -----------------------------------------------------------------------
+
+def part_node(work, repeats):
+    """The node mode's profile coverage and its following error against the model mode's."""
+    loop = loop_file(work / "node_loop.yaml")
+    spec = spec_file(work / "node_spec.yaml", kind="reversal", speeds_rev_s=[0.5, 1.0, 2.0],
+                     stroke_rev=1.0, accel_rev_s2=20.0, axial_load_n=1500.0)
+    print(f"\n5. node mode: the real friction_node at 1 kHz, bundled screw, reversals at "
+          f"0.5-2 rev/s; load {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
+    print(f"  {'run':>4s} {'coverage':>9s} {'beyond':>7s} {'reversed':>9s} {'standstill':>11s} "
+          f"{'late':>6s} {'node FE RMS':>12s} {'model FE RMS':>13s} {'node glitch':>12s} "
+          f"{'model glitch':>13s}")
+    for i in range(repeats):
+        out = work / f"servo_node_{i}"
+        cli("servo-test", spec, "--loop", loop, "--config", bundled_config("ball_screw.yaml"),
+            "--out", out, "--modes", "model", "node", "--no-progress", "--no-plots")
+        s = summary(out)["modes"]
+        c = s["node"]["node"]
+        n = c["cycles"]
+        st = c["statuses"]
+        print(f"  {i:4d} {c['coverage']:9.3f} {st.get('beyond', 0) / n:7.3f} "
+              f"{st.get('reversed', 0) / n:9.3f} {st.get('standstill', 0) / n:11.3f} "
+              f"{c['late_cycles'] / n:6.3f} {s['node']['following_error_rms_um']:12.3g} "
+              f"{s['model']['following_error_rms_um']:13.3g} "
+              f"{s['node']['reversal_glitch_max_um']:12.3g} "
+              f"{s['model']['reversal_glitch_max_um']:13.3g}", flush=True)
 
 
 # --- 2. the measured loop --------------------------------------------------------------------
@@ -344,7 +374,8 @@ def part_sweep(work):
 def main():
     """Parse the options and run the parts."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--part", choices=("exact", "speed", "measured", "b2b", "sweep", "all"),
+    p.add_argument("--part", choices=("exact", "speed", "measured", "b2b", "sweep", "node",
+                                      "all"),
                    default="all")
     p.add_argument("--workdir", type=Path, default=None,
                    help="where the recordings and runs go (default: a temporary directory)")
@@ -364,6 +395,8 @@ def main():
         part_b2b(work)
     if args.part in ("sweep", "all"):
         part_sweep(work)
+    if args.part in ("node", "all"):
+        part_node(work, args.repeats)
 
 
 if __name__ == "__main__":
