@@ -180,6 +180,8 @@ class Setup:
                     "torque_limited": ctl.limited, "feedforward_wrong_sign": mode.wrong_sign,
                     "feedforward_against_motion": mode.against_motion,
                     "plant_model_errors": law.errors,
+                    "plant_nonconverged_steps": _nonconverged(law),
+                    "feedforward_nonconverged_steps": _nonconverged(mode),
                     "feedforward_model_errors": getattr(mode, "errors", 0)}
         return AxisRun(t, ref, out["angle"], out["velocity"], out["meas"], out["cmd"],
                        out["applied"], out["friction"], out["ff"], counters)
@@ -302,6 +304,12 @@ class Setup:
             out["none_torque_error_at_most_rigid_body"] = bool(
                 out["none"]["torque"] <= out["rigid_body"]["torque"])
         return out
+
+
+def _nonconverged(obj):
+    """Return the model steps that did not converge of a law or mode with a runner (else 0)."""
+    runner = getattr(obj, "runner", None) or getattr(getattr(obj, "law", None), "runner", None)
+    return runner.stats.nonconverged_steps if runner is not None else 0
 
 
 @dataclasses.dataclass
