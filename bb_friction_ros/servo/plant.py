@@ -117,27 +117,24 @@ class ModelFriction:
         """
         Return the model's torque an instant into a motion of ``direction`` (+1 or -1) [N m].
 
-        A shallow copy of the model state is stepped there (the runner's own state is left
-        as it is: the axis has not moved yet), plus the terms at that velocity.
+        Copies of the model state and of the terms' live state (a term may carry one) are
+        stepped there: the runner itself is left as it is, the axis has not moved yet.
         """
         w = direction * BREAKAWAY_PROBE_RAD_S
         r = self.runner
-        torque = 0.0
-        if r._state is not None:
-            screw = copy.copy(r.screw)
-            try:
-                res = screw.step(angle_rad, w, load_n, 0.0)
-                torque = float(res.torque_total_nm)
-            except Exception:   # a failed probe: the last moving torque's magnitude
-                self.errors += 1
-                torque = direction * abs(self._last)
-        else:
-            r.process(InputSample(t_s, angle_rad, w, load_n))
-            torque = float(r._state.torque_total_nm)
-        if len(self.terms):
+        if r._state is None:
+            p = r.process(InputSample(t_s, angle_rad, w, load_n))
+            return self._last if p is None else float(p.torque_total_nm)
+        try:
+            res = copy.copy(r.screw).step(angle_rad, w, load_n, 0.0)
+            torque = float(res.torque_total_nm)
+        except Exception:   # a failed probe: the last moving torque's magnitude, counted
+            self.errors += 1
+            torque = direction * abs(self._last)
+        if r._live_terms is not None:
             first = r._first_stamp
             t_run = 0.0 if first is None else t_s - first
-            torque += float(self.terms.torque_nm(t_run, angle_rad, w, load_n))
+            torque += copy.deepcopy(r._live_terms).torque_nm(t_s, t_run, angle_rad, w, load_n)
         return torque
 
 
