@@ -43,7 +43,7 @@ import numpy as np
 from bb_friction_ros.config import ConfigError
 from bb_friction_ros.empirical_terms import TermSet
 from bb_friction_ros.model_file import load_model_file, NoPhysics, physics_of
-from bb_friction_ros.runner import InputSample, ModelRunner
+from bb_friction_ros.runner import InputSample, ModelRunner, RunnerStats
 
 # Velocity at which the breakaway torque is asked of the model [rad/s]: an instant into the
 # motion.  Small against any viscous term (1e-9 rad/s x 10 N m s/rad = 1e-8 N m).
@@ -117,25 +117,26 @@ class ModelFriction:
         """
         Return the model's torque an instant into a motion of ``direction`` (+1 or -1) [N m].
 
-        Copies of the model state and of the terms' live state (a term may carry one) are
-        stepped there: the runner itself is left as it is, the axis has not moved yet.
+        A copy of the runner answers it (the runner's own rules, a term's live state
+        included), so the runner itself is left as it is: the axis has not moved yet.  The
+        copy is shallow but for what a step changes in place: the counters and the terms'
+        live state (the screw's step rebinds its arrays, ``ModelRunner.profile_seed``).
         """
         w = direction * BREAKAWAY_PROBE_RAD_S
         r = self.runner
         if r._state is None:
             p = r.process(InputSample(t_s, angle_rad, w, load_n))
             return self._last if p is None else float(p.torque_total_nm)
-        try:
-            res = copy.copy(r.screw).step(angle_rad, w, load_n, 0.0)
-            torque = float(res.torque_total_nm)
-        except Exception:   # a failed probe: the last moving torque's magnitude, counted
+        probe = copy.copy(r)
+        probe.screw = copy.copy(r.screw)
+        probe._live_terms = copy.deepcopy(r._live_terms)
+        probe.stats = RunnerStats()
+        stamp = max(t_s, r._last_stamp)
+        p = probe.process(InputSample(stamp, angle_rad, w, load_n))
+        if p is None:       # a failed probe: the last moving torque's magnitude, counted
             self.errors += 1
-            torque = direction * abs(self._last)
-        if r._live_terms is not None:
-            first = r._first_stamp
-            t_run = 0.0 if first is None else t_s - first
-            torque += copy.deepcopy(r._live_terms).torque_nm(t_s, t_run, angle_rad, w, load_n)
-        return torque
+            return direction * abs(self._last)
+        return float(p.torque_total_nm)
 
 
 @dataclasses.dataclass
