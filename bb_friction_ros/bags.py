@@ -501,6 +501,30 @@ def stamp_ns(event):
     return int(round(event.stamp_s * 1e9))
 
 
+def _unknown_topic_rows(reader):
+    """
+    Return {sqlite3 file: {topic id: rows}} for rows whose topic id is not in ``topics``.
+
+    rosbags reads messages joined with the ``topics`` table, so such rows are never
+    returned.  It counts, on opening, all rows and each topic's rows: only where those
+    disagree are the unknown ids looked up (a scan of the messages table).
+    """
+    from rosbags.rosbag2.storage_sqlite3 import Sqlite3Reader
+    storage = getattr(reader, "storage", None)
+    found = {}
+    for db in getattr(storage, "storages", None) or [storage]:
+        if not isinstance(db, Sqlite3Reader) or db.dbconn is None:
+            continue
+        if db.metadata.message_count == sum(c.msgcount for c in db.connections):
+            continue
+        rows = db.dbconn.execute(
+            "SELECT topic_id, COUNT(*) FROM messages WHERE topic_id NOT IN "
+            "(SELECT id FROM topics) GROUP BY topic_id ORDER BY topic_id").fetchall()
+        if rows:
+            found[str(db.path)] = {int(i): int(n) for i, n in rows}
+    return found
+
+
 def _check_metadata(path):
     """Refuse a rosbag2 directory whose metadata.yaml is missing, empty or not metadata."""
     meta = path / "metadata.yaml"
@@ -530,6 +554,10 @@ class BagInput:
     ``measured_torque`` is optional.  ``messages()`` then yields every message in log order;
     ``counts`` holds the messages actually read per topic (never metadata.yaml's claims) and
     ``joint_names`` the joint names seen on nut_state.  Every failure is a ``BagError``.
+
+    Messages no reader can return are counted on opening: sqlite3 rows whose topic id has no
+    row in the ``topics`` table (``unknown_topic_messages``); ``warnings()`` says so, and
+    where the messages read disagree with the bag's own count.
     """
 
     def __init__(self, path, topics=Topics()):
@@ -544,8 +572,11 @@ class BagInput:
         try:
             self._reader = Reader(self.path)
             self._reader.open()
+            self.unknown_topic_messages = _unknown_topic_rows(self._reader)
         except Exception as exc:     # rosbags raises its own, sqlite3's and struct's errors
-            raise BagError(f"{self._files()}: not a readable rosbag2 ({_why(exc)})") from None
+            files = self._files()
+            self.close()
+            raise BagError(f"{files}: not a readable rosbag2 ({_why(exc)})") from None
         try:
             self.connections = list(self._reader.connections)
             self.topic_types = {}
@@ -616,6 +647,32 @@ class BagInput:
                 reader.close()
             except Exception:    # closing a damaged storage may fail again: already reported
                 pass
+
+    def warnings(self, all_topics=True):
+        """
+        Return sentences on messages of the bag that were not read, after reading it whole.
+
+        Rows of an unknown topic (``unknown_topic_messages``), and topics whose count read
+        differs from the bag's own (metadata.yaml of a directory): only the topics read
+        (``all_topics`` False: the input topics).
+        """
+        out = []
+        for name, ids in self.unknown_topic_messages.items():
+            where = ", ".join(f"topic id {i}: {n}" for i, n in ids.items())
+            out.append(f"{name}: {sum(ids.values())} messages carry a topic id with no row in "
+                       f"its topics table ({where}): their topic and type are unknown, so "
+                       "they were not read")
+        listed = Counter()
+        for c in self.connections:
+            if all_topics or c.topic in self.resolved:
+                listed[c.topic] += c.msgcount
+        differ = [f"{listed[t]} on {t} ({self.counts[t]} read)" for t in sorted(listed)
+                  if listed[t] != self.counts[t]]
+        if differ:
+            where = self.path / "metadata.yaml" if self.path.is_dir() else self._files()
+            out.append(f"{where} lists other message counts than were read: "
+                       f"{', '.join(differ)}; the summary counts the messages read")
+        return out
 
     def total_messages(self):
         """Messages metadata.yaml announces (for a progress bar only: it may be wrong)."""
@@ -1220,11 +1277,20 @@ class BagWriter:
         batch, self._batch = self._batch, []
         if not batch:
             return
-        if self._batched:
-            _mcap_write_batch(self._writer, batch)
-        else:
-            for conn, log_ns, raw in batch:
-                self._writer.write(conn, log_ns, raw)
+        try:
+            if self._batched:
+                _mcap_write_batch(self._writer, batch)
+            else:
+                for conn, log_ns, raw in batch:
+                    self._writer.write(conn, log_ns, raw)
+        except (OverflowError, struct.error):
+            # mcap stores log times as unsigned 64-bit ns since 1970: name the one that is not
+            bad = next(((c, t) for c, t, _ in batch if not 0 <= t < 2 ** 64), None)
+            if bad is None:
+                raise
+            raise BagError(f"{self.path}: cannot log a message on {bad[0].topic} at "
+                           f"{bad[1]} ns: a bag's log time is 0 to 2^64 - 1 ns since "
+                           "1970") from None
 
     def close(self):
         """Finish the bag (writes the last batch and metadata.yaml)."""

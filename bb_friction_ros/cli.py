@@ -231,6 +231,38 @@ def _run_node(args):
     return node_main(["bb-friction-node"] + ros_args)
 
 
+def _add_feedforward_parser(sub):
+    p = sub.add_parser("feedforward", help="friction feedforward along a planned trajectory: "
+                       "each row's torque at its own time (a controller plays it back)")
+    p.add_argument("trajectory", help="CSV with t_s, nut_angle_rad, nut_velocity_rad_s, "
+                   "axial_load_n (the plan), or a rosbag2 directory with nut_state and "
+                   "axial_load")
+    p.add_argument("--config", help="ball-screw YAML or a discrepancy augmented.yaml "
+                   "(default: bundled config/ball_screw.yaml)")
+    p.add_argument("--settings", help="YAML with a 'feedforward' mapping: breakaway_lead_s, "
+                   "model_step_deg")
+    p.add_argument("--nut-joint", default="nut_joint", help="joint name in a bag's nut_state")
+    p.add_argument("--out", required=True, help="output directory: feedforward.csv, "
+                   "summary.json")
+    p.set_defaults(func=_run_feedforward)
+
+
+def _run_feedforward(args):
+    from bb_friction_ros.config import bundled_config, load_section
+    from bb_friction_ros.planned import (load_planned_settings, planned_feedforward,
+                                         read_trajectory, write_feedforward)
+    settings = load_planned_settings(load_section(args.settings, "feedforward")
+                                     if args.settings else None)
+    config = args.config or bundled_config("ball_screw.yaml")
+    t, phi, w, load = read_trajectory(args.trajectory, args.nut_joint)
+    ff = planned_feedforward(t, phi, w, load, config, settings)
+    summary = write_feedforward(args.out, ff, config, args.trajectory)
+    print(json.dumps({k: summary[k] for k in ("rows", "breakaway_rows", "nonconverged_rows",
+                                              "max_abs_torque_ff_nm")}))
+    print(f"outputs in {args.out}")
+    return 0 if summary["nonconverged_rows"] == 0 else 1
+
+
 def _add_demo_parsers(sub):
     p = sub.add_parser("make-demo-bag", help="generate the demo recording (reversing nut "
                        "motion, varying load, synthetic measured torque)")
@@ -276,11 +308,26 @@ def _run_demo(args):
     import os
     from pathlib import Path
     from bb_friction_ros.demo import run_demo
-    from bb_friction_ros.interface import local_domain_id
+    from bb_friction_ros.interface import local_domain_id, ros_log_dir_problem
     # DDS stays on this machine, on a domain of this run's own (set before rclpy.init).
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     os.environ.setdefault("ROS_DOMAIN_ID", str(local_domain_id()))
-    return run_demo(Path(args.out), _demo_events(), speed=args.speed)
+    problem = ros_log_dir_problem()
+    if problem:     # an unwritable HOME: rclpy.init would fail with an RCLError traceback
+        os.environ["ROS_LOG_DIR"] = str(Path(args.out).resolve() / "ros_log")
+        print(f"bb-friction demo: {problem}; logging into {os.environ['ROS_LOG_DIR']}",
+              file=sys.stderr)
+    try:
+        return run_demo(Path(args.out), _demo_events(), speed=args.speed)
+    except KeyboardInterrupt:
+        print(f"bb-friction demo: interrupted; the outputs in {args.out} are partial",
+              file=sys.stderr)
+        # DDS's own threads may still run (rclpy's context is shut down by the same SIGINT):
+        # a normal interpreter exit then aborts ("terminate called without an active
+        # exception", status 134); nothing is left to write, so leave at once.
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(130)
 
 
 def build_parser():
@@ -293,6 +340,7 @@ def build_parser():
     _add_replay_parser(sub)
     _add_node_parser(sub)
     _add_demo_parsers(sub)
+    _add_feedforward_parser(sub)
     screw_cli.add_screw_pair_parser(sub)
     screw_cli.add_screw_sim_parser(sub)
     discrepancy_cli.add_discrepancy_parser(sub)

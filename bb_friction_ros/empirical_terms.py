@@ -26,7 +26,16 @@ stroke_position    sign(omega) sum_k a_k P_k(xi), xi = (phi - phi_c)/phi_h      
                                                                                 the stroke
 angle_ripple       sum_h a_h sin(h phi) + b_h cos(h phi)                        runout,
                                                                                 coupling
+pre_rolling        T_p (z - sign(omega)), dz/dphi = (sign(dphi) - z) / phi_p    rolling
+                                                                                contacts'
+                                                                                elasticity
 =================  ===========================================================  ============
+
+``pre_rolling`` carries a state: z in [-1, 1] follows the nut's travel (a Dahl element with
+the characteristic rotation phi_p), so after a reversal the part T_p of the drag builds up over
+a few phi_p instead of flipping; at steady motion z = sign(omega) and the term is 0.  The
+runner never lets the friction it answers oppose the motion (``runner.ModelRunner._answer``),
+so right after a reversal the answered friction builds up from 0 (docs/pre_rolling.md).
 
 omega: nut velocity [rad/s]; alpha: nut acceleration [rad/s^2] (low-pass filtered derivative of
 omega: ``AccelerationFilter``); phi: nut angle [rad] (cumulative: the nut's travel along the
@@ -85,6 +94,18 @@ class StribeckParams:
                              hi=100.0)
     velocity_rad_s: float = field(1.0, "rad/s", "Stribeck nut velocity omega_s", lo=0.0,
                                   hi=1e4, lo_open=True)
+
+
+@dataclasses.dataclass(frozen=True)
+class PreRollingParams:
+    """Pre-rolling: T_p (z - sign(omega)), z a Dahl state of the nut travel (phi_p)."""
+
+    torque_nm: float = field(0.0, "N m", "the drag T_p that builds up over the pre-rolling "
+                             "travel after a reversal (its whole Coulomb part: ~the drag at low "
+                             "speed)", lo=0.0, hi=100.0)
+    travel_rad: float = field(1e-3, "rad", "characteristic nut rotation phi_p of the build-up "
+                              "(axial travel = phi_p x lead / 2 pi)", lo=0.0, hi=10.0,
+                              lo_open=True)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -285,6 +306,71 @@ def _viscous_asymmetry_columns(x, nl, names):
     return [0.5 * np.abs(x.nut_velocity_rad_s)]
 
 
+def dahl_state(nut_angle_rad, t_s, travel_rad, nut_velocity_rad_s):
+    """
+    Return the pre-rolling state z [-1, 1] at each sample of a sequence (a Dahl element).
+
+    dz/dphi = (sign(dphi) - z) / phi_p, solved exactly over each sample's rotation dphi:
+    z_k = s + (z_k-1 - s) exp(-|dphi| / phi_p), s = sign(dphi); unchanged where the nut does
+    not turn.  A run (``t_s`` going back: the runner reset) starts at z = sign(omega), the
+    steady state of its first motion.  ``PreRollingState`` is the same per sample.
+    """
+    phi = np.atleast_1d(np.asarray(nut_angle_rad, dtype=float))
+    t = np.broadcast_to(np.asarray(t_s, dtype=float), phi.shape)
+    w = np.broadcast_to(np.asarray(nut_velocity_rad_s, dtype=float), phi.shape)
+    z = np.empty(phi.shape)
+    if not phi.size:
+        return z
+    angle = phi.tolist()
+    restart = np.concatenate(([True], np.diff(t) < 0.0)).tolist()
+    start = np.sign(w).tolist()
+    out = z.tolist()
+    zk = 0.0
+    for k in range(phi.size):
+        if restart[k]:
+            zk = start[k]
+        else:
+            zk = _dahl_step(zk, angle[k] - angle[k - 1], travel_rad)
+        out[k] = zk
+    return np.array(out).reshape(phi.shape)
+
+
+def _dahl_step(z, d_rad, travel_rad):
+    """Return the Dahl state after a rotation ``d_rad`` (exact for a constant direction)."""
+    if d_rad == 0.0:
+        return z
+    s = 1.0 if d_rad > 0.0 else -1.0
+    return s + (z - s) * math.exp(-abs(d_rad) / travel_rad)
+
+
+class PreRollingState:
+    """The Dahl state of ``dahl_state`` one sample at a time (the runner's terms)."""
+
+    def __init__(self, travel_rad):
+        """Start with no sample seen."""
+        self.travel_rad = travel_rad
+        self.reset()
+
+    def reset(self):
+        """Forget the state: the next sample starts a run."""
+        self._angle = None
+        self.z = 0.0
+
+    def update(self, nut_angle_rad, nut_velocity_rad_s):
+        """Advance to a sample; return z."""
+        angle = float(nut_angle_rad)
+        if self._angle is None:
+            self.z = float(np.sign(nut_velocity_rad_s))
+        else:
+            self.z = _dahl_step(self.z, angle - self._angle, self.travel_rad)
+        self._angle = angle
+        return self.z
+
+
+def _pre_rolling_columns(x, nl, names):
+    return [dahl_state(x.nut_angle_rad, x.t_s, nl, x.nut_velocity_rad_s) - _drag_sign(x)]
+
+
 def stroke_coordinate(nut_angle_rad, center_rad, half_range_rad):
     """Return xi = (phi - center) / half_range, held at +/-1 beyond the fitted stroke."""
     return np.clip((np.asarray(nut_angle_rad, float) - center_rad) / half_range_rad, -1.0, 1.0)
@@ -431,6 +517,11 @@ LIBRARY = {k.name: k for k in (
              sparse=True,
              meaning="drag that changes along the stroke (wear, misalignment, lubricant "
              "distribution): a low-order polynomial of the nut's travel"),
+    TermKind("pre_rolling", PreRollingParams, ("torque_nm",), _pre_rolling_columns,
+             nonlinear="travel_rad", nonnegative=frozenset({"torque_nm"}),
+             required=("torque_nm", "travel_rad"),
+             meaning="pre-rolling: after a reversal the drag builds up over a characteristic "
+             "nut travel instead of flipping (elastic micro-slip of the rolling contacts)"),
     TermKind("angle_ripple", AngleRippleParams, _RIPPLE_NAMES, _ripple_columns, sparse=True,
              meaning="torque ripple once per nut revolution and harmonics, independent of "
              "the load (runout, coupling misalignment)"),
@@ -438,6 +529,13 @@ LIBRARY = {k.name: k for k in (
 
 # Terms whose columns coincide on moving samples; only standstill samples separate them.
 AMBIGUOUS_PAIRS = (("offset", "coulomb_asymmetry"),)
+
+# The terms whose torque is friction: dissipated at the contacts, so with the physics it has the
+# sign of the nut velocity (a model whose friction does not is refused:
+# ``runner.check_friction_sign``).  The others are not friction and may take either sign: the
+# torque that accelerates the moving parts, gravity or a sensor bias, and the load-torque and
+# runout ripples of lead error and angle ripple.
+NOT_FRICTION = frozenset({"inertia", "offset", "lead_error", "angle_ripple"})
 
 
 def units_of(kind_name):
@@ -507,6 +605,15 @@ class TermSet:
         for t in self.terms:
             total = total + t.torque_nm(x)
         return total if total.ndim else float(total)
+
+    def friction_nm(self, t_s, nut_angle_rad, nut_velocity_rad_s, axial_load_n):
+        """Return the torque [N m] of the terms that are friction (not in ``NOT_FRICTION``)."""
+        x = Inputs.of(t_s, nut_angle_rad, nut_velocity_rad_s, axial_load_n)
+        total = np.zeros_like(x.t_s)
+        for t in self.terms:
+            if t.name not in NOT_FRICTION:
+                total = total + t.torque_nm(x)
+        return total
 
     def acceleration_filter(self):
         """Return the (cutoff_hz, max_gap_s) of the inertia terms' filter, or None."""
@@ -767,15 +874,35 @@ class LiveTerms:
         spec = terms.acceleration_filter()
         self.filter = AccelerationFilter(*spec) if spec else None
         self.last_accel_rad_s2 = None
+        self.last_friction_nm = 0.0         # the friction terms' share of the last sample's
+        self._states = []                   # the pre-rolling terms' Dahl states
         # terms without an amplitude add 0.0 (exactly: the sum starts at +0.0) and are left out
-        self._evaluators = [f for f in (t.kind.sample_evaluator(t.params) for t in terms.terms)
-                            if f is not None]
+        self._evaluators = []               # (f(x), is friction)
+        for t in terms.terms:
+            if t.name == "pre_rolling":
+                f = self._pre_rolling(t.params)
+            else:
+                f = t.kind.sample_evaluator(t.params)
+            if f is not None:
+                self._evaluators.append((f, t.name not in NOT_FRICTION))
+
+    def _pre_rolling(self, params):
+        """Return the evaluator of a pre-rolling term: its column from a state of its own."""
+        if params.torque_nm == 0.0:
+            return None
+        state = PreRollingState(params.travel_rad)
+        self._states.append(state)
+        amplitude = params.torque_nm
+        return lambda x: (state.update(x.nut_angle_rad, x.nut_velocity_rad_s)
+                          - np.sign(x.nut_velocity_rad_s)) * amplitude
 
     def reset(self):
-        """Restart the acceleration filter."""
+        """Restart the acceleration filter and the pre-rolling states."""
         self.last_accel_rad_s2 = None       # alpha at the last sample (None: no filter)
         if self.filter is not None:
             self.filter.reset()
+        for state in self._states:
+            state.reset()
 
     def torque_nm(self, stamp_s, t_run_s, nut_angle_rad, nut_velocity_rad_s, axial_load_n):
         """Return the terms' torque [N m] at one sample (updates the filter)."""
@@ -787,9 +914,13 @@ class LiveTerms:
         # 0-d arrays of TermSet.torque_nm take after their first ufunc, so the sums agree
         x = _Sample(_f64(t_run_s), _f64(nut_angle_rad), _f64(nut_velocity_rad_s),
                     _f64(axial_load_n), None if accel is None else _f64(accel))
-        total = 0.0
-        for f in self._evaluators:
-            total = total + f(x)
+        total = friction = 0.0
+        for f, is_friction in self._evaluators:
+            value = f(x)
+            total = total + value
+            if is_friction:
+                friction = friction + value
+        self.last_friction_nm = float(friction)
         return float(total)
 
 

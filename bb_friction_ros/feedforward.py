@@ -235,3 +235,72 @@ class FeedforwardInterpolator:
                 self.load_capped += 1
             torque *= load / self._load
         return torque
+
+
+BEFORE = "before"
+AFTER = "after"
+PLANNED = "planned"
+
+
+class PlannedPlayback:
+    """
+    Play a planned feedforward back by time: the controller side of ``bb-friction feedforward``.
+
+    A plan is rows of (time [s], friction torque [N m]) computed along the commanded
+    trajectory (``planned.planned_feedforward``, the node's ``friction/planned_feedforward``),
+    each torque at its own row's time.  ``torque_at_time(now_s)`` gives the row at ``now_s``,
+    linear between rows (a controller whose clock falls between them), on the plan's clock.
+    Before the first row, after the last one, or without a plan: 0 N m (status ``before``,
+    ``after``, ``empty``): a plan is never extrapolated.  A new plan replaces the old one from
+    its own start time on; the old rows before it stay.  Like ``FeedforwardInterpolator`` it
+    imports nothing and ports line by line to C++.  A malformed plan (lengths differ, empty,
+    times not strictly increasing, anything non-finite) raises ``ValueError`` and the old one
+    stays.
+    """
+
+    def __init__(self):
+        """Start without a plan."""
+        self._t = []
+        self._torque = []
+        self.status = EMPTY
+
+    def set_plan(self, t_s, torque_nm):
+        """Take a plan; it replaces the rows of the old one from its first time on."""
+        t, q = [float(x) for x in t_s], [float(x) for x in torque_nm]
+        if len(t) != len(q) or not t:
+            raise ValueError("a plan needs as many torques as times, and at least one row")
+        for i in range(len(t)):
+            if not (_finite(t[i]) and _finite(q[i])):
+                raise ValueError(f"plan row {i} is not finite")
+            if i and not t[i] > t[i - 1]:
+                raise ValueError(f"plan row {i}: times must increase")
+        keep = 0
+        while keep < len(self._t) and self._t[keep] < t[0]:
+            keep += 1
+        self._t = self._t[:keep] + t
+        self._torque = self._torque[:keep] + q
+
+    def torque_at_time(self, now_s):
+        """Return the planned friction torque at ``now_s`` [N m] (see the class docstring)."""
+        n = len(self._t)
+        if n == 0 or not _finite(now_s):
+            self.status = EMPTY if n == 0 else INVALID_INPUT
+            return 0.0
+        if now_s < self._t[0]:
+            self.status = BEFORE
+            return 0.0
+        if now_s > self._t[n - 1]:
+            self.status = AFTER
+            return 0.0
+        self.status = PLANNED
+        lo, hi = 0, n - 1              # invariant: t(lo) <= now <= t(hi)
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            if self._t[mid] <= now_s:
+                lo = mid
+            else:
+                hi = mid
+        if now_s == self._t[hi]:
+            return self._torque[hi]
+        w = (now_s - self._t[lo]) / (self._t[hi] - self._t[lo]) if hi > lo else 0.0
+        return self._torque[lo] + w * (self._torque[hi] - self._torque[lo])

@@ -23,6 +23,10 @@ FEEDFORWARD = "friction/feedforward"
 PROFILE = "friction/feedforward_profile"
 CONTACT_GROUPS = "friction/contact_groups"
 DIAGNOSTICS = "/diagnostics"
+# Feedforward along a planned trajectory: in, the plan; out, the same points with the
+# predicted friction torque in ``effort`` [N m] (planned.planned_feedforward)
+PLANNED_TRAJECTORY = "friction/planned_trajectory"
+PLANNED_FEEDFORWARD = "friction/planned_feedforward"
 
 # --- message types (ROS 2 'package/msg/Type' names) ----------------------------------------
 JOINT_STATE = "sensor_msgs/msg/JointState"
@@ -37,9 +41,11 @@ TYPES = {
     PROFILE: f"{MSGS_PACKAGE}/msg/FeedforwardProfile",
     CONTACT_GROUPS: f"{MSGS_PACKAGE}/msg/ContactGroupStatus",
     DIAGNOSTICS: "diagnostic_msgs/msg/DiagnosticArray",
+    PLANNED_TRAJECTORY: "trajectory_msgs/msg/JointTrajectory",
+    PLANNED_FEEDFORWARD: "trajectory_msgs/msg/JointTrajectory",
 }
 # What the node publishes (another publisher on one of them is reported: two nodes?).
-OUTPUTS = (PREDICTION, FEEDFORWARD, PROFILE, CONTACT_GROUPS)
+OUTPUTS = (PREDICTION, FEEDFORWARD, PROFILE, CONTACT_GROUPS, PLANNED_FEEDFORWARD)
 # What replay writes into its output bag, in the node's order of publication per input;
 # the profile (a wall-clock look-ahead of the model thread) is not reproduced offline.
 REPLAYED_OUTPUTS = (PREDICTION, CONTACT_GROUPS, FEEDFORWARD)
@@ -64,7 +70,8 @@ COLLECTOR_QOS_DEPTH = 1000
 # (len(groups)).  test/test_interface.py checks this against FrictionPrediction.msg.
 PREDICTION_FIELDS = ("nut_angle_rad", "nut_velocity_rad_s", "axial_load_n", "torque_total_nm",
                      "torque_b2g_nm", "torque_b2b_nm", "torque_empirical_nm", "converged",
-                     "model_latency_s", "model_age_s", "n_groups")
+                     "model_latency_s", "model_age_s", "n_groups", "torque_state_nm",
+                     "state_other_direction")
 _FROM_PUBLISHER = ("model_latency_s", "n_groups")
 PREDICTION_FROM_RUNNER = tuple(f for f in PREDICTION_FIELDS if f not in _FROM_PUBLISHER)
 
@@ -74,7 +81,7 @@ def prediction_values(pred, latency_s):
     return (pred.nut_angle_rad, pred.nut_velocity_rad_s, pred.axial_load_n,
             pred.torque_total_nm, pred.torque_b2g_nm, pred.torque_b2b_nm,
             pred.torque_empirical_nm, bool(pred.converged), latency_s, pred.model_age_s,
-            len(pred.groups))
+            len(pred.groups), pred.torque_state_nm, bool(pred.state_other_direction))
 
 
 # --- DDS isolation -------------------------------------------------------------------------
@@ -86,3 +93,34 @@ def local_domain_id(pid=None):
     side by side on one machine do not hear each other, nor a robot on domain 0.
     """
     return 1 + (os.getpid() if pid is None else pid) % 101
+
+
+# --- ROS's log directory -------------------------------------------------------------------
+def ros_log_dir(environ=None):
+    """Return the directory rclpy.init logs into: ROS_LOG_DIR, ROS_HOME/log or ~/.ros/log."""
+    env = os.environ if environ is None else environ
+    if env.get("ROS_LOG_DIR"):
+        return os.path.expanduser(env["ROS_LOG_DIR"])
+    home = env.get("ROS_HOME") or os.path.join(env.get("HOME") or os.path.expanduser("~"),
+                                               ".ros")
+    return os.path.join(os.path.expanduser(home), "log")
+
+
+def ros_log_dir_problem(environ=None):
+    """
+    Return why rclpy.init cannot create its log directory, or None.
+
+    rclpy.init fails with an RCLError traceback that does not say where it wanted to write
+    (an unwritable HOME, a read-only container); the fix is ROS_LOG_DIR.
+    """
+    path = ros_log_dir(environ)
+    probe = path
+    while not os.path.exists(probe):
+        parent = os.path.dirname(probe)
+        if parent == probe:
+            break
+        probe = parent
+    if os.path.isdir(probe) and os.access(probe, os.W_OK | os.X_OK):
+        return None
+    return (f"ROS logs go to {path}, and {probe} is not writable: set ROS_LOG_DIR to a "
+            "writable directory")

@@ -554,6 +554,16 @@ class LiveSchedule:
             self._window = self._window_start(now)
         return values, w, latest is None or latest.converged
 
+    @property
+    def params(self):
+        """Return the node's parameters now (NodeParameters)."""
+        return self._params
+
+    @property
+    def held_load_n(self):
+        """Return the axial load held for the next nut state [N], or None before any."""
+        return self._assembler.load_n
+
     def status(self, extra_warnings=()):
         """
         Return (level, message, values) of the schedule's health and start a new window.

@@ -12,6 +12,7 @@ convention; the runner's safe value), ``friction/feedforward_profile`` (once per
 period), ``friction/contact_groups`` (on change, at ``groups_rate_hz``), ``/diagnostics``.
 """
 
+import concurrent.futures
 import dataclasses
 import sys
 import time
@@ -28,13 +29,16 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray, Header
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from bb_friction_ros import interface
-from bb_friction_ros.config import bundled_config, ConfigError
+from bb_friction_ros.config import BBFrictionError, bundled_config, ConfigError
 from bb_friction_ros.live import LiveSchedule, Outputs, process_age_s, process_cpu_s
 from bb_friction_ros.node_parameters import (MODEL_PARAMETERS, NODE_NAME, node_parameters,
                                              NodeParameters, ros_type, RUNTIME,
                                              unknown_parameters)
+from bb_friction_ros.planned import planned_feedforward, PlannedTrajectoryError, \
+    trajectory_rows
 from bb_friction_ros.ros_inputs import InputTaker
 from bb_friction_ros.runner import build_runner, InputAssembler
 
@@ -99,6 +103,11 @@ class FrictionNode(Node):
         self._pub_ff = self.create_publisher(Float64MultiArray, interface.FEEDFORWARD, depth)
         self._pub_profile = self.create_publisher(FeedforwardProfile, interface.PROFILE, depth)
         self._pub_diag = self.create_publisher(DiagnosticArray, interface.DIAGNOSTICS, depth)
+        self._pub_planned = self.create_publisher(JointTrajectory,
+                                                  interface.PLANNED_FEEDFORWARD, depth)
+        # a plan is computed in a thread of its own: the executor keeps serving meanwhile
+        self._planner = concurrent.futures.ThreadPoolExecutor(1, "friction_planner")
+        self.planned = {"received": 0, "published": 0, "rejected": 0, "last_error": ""}
         self.live = LiveSchedule(
             build_runner(_model_file(p), *p.schedule()),
             InputAssembler(p.nut_joint, p.max_axial_load_n), p,
@@ -114,6 +123,8 @@ class FrictionNode(Node):
                                      qos),
             self.create_subscription(JointState, interface.NUT_STATE,
                                      lambda msg: self._on_nut_state(msg, time.time_ns()), qos))
+        self.create_subscription(JointTrajectory, interface.PLANNED_TRAJECTORY,
+                                 self._on_planned_trajectory, depth)
         self._groups_timer = self.create_timer(1.0 / p.groups_rate_hz, self.live.publish_groups)
         self.create_timer(1.0 / p.diagnostics_rate_hz, self._publish_diagnostics)
         # rclpy's pattern: validate in the on-set callback, apply in the post-set one
@@ -136,6 +147,42 @@ class FrictionNode(Node):
 
     def _on_axial_load(self, msg):
         self.live.on_axial_load(msg.wrench.force.z)
+
+    def _on_planned_trajectory(self, msg):
+        self.planned["received"] += 1
+        self._planner.submit(self._plan, msg)
+
+    def _plan(self, msg):
+        """Publish the plan's points with the friction torque in ``effort`` (planned.py)."""
+        try:
+            stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+            if stamp == 0.0:        # joint_trajectory_controller: a stamp of 0 starts now
+                stamp = self.get_clock().now().nanoseconds * 1e-9
+            p = self.live.params
+            t, phi, w, j = trajectory_rows(
+                msg.joint_names, [pt.time_from_start.sec + 1e-9 * pt.time_from_start.nanosec
+                                  for pt in msg.points],
+                [pt.positions for pt in msg.points], [pt.velocities for pt in msg.points],
+                p.nut_joint, stamp)
+            load = self.live.held_load_n
+            if load is None:
+                raise PlannedTrajectoryError("no axial_load received yet")
+            ff = planned_feedforward(t, phi, w, load, _model_file(p))
+        except (BBFrictionError, ValueError) as exc:
+            self.planned["rejected"] += 1
+            self.planned["last_error"] = str(exc)
+            self.get_logger().warning(f"{interface.PLANNED_TRAJECTORY}: refused: {exc}")
+            return
+        out = JointTrajectory(header=msg.header, joint_names=list(msg.joint_names))
+        for k, pt in enumerate(msg.points):
+            effort = [0.0] * len(msg.joint_names)
+            effort[j] = float(ff.torque_ff_nm[k])
+            out.points.append(JointTrajectoryPoint(
+                positions=list(pt.positions), velocities=list(pt.velocities),
+                accelerations=list(pt.accelerations), effort=effort,
+                time_from_start=pt.time_from_start))
+        self._pub_planned.publish(out)
+        self.planned["published"] += 1
 
     def _answer(self, pred, stamp, latency_s, thread):
         """Publish prediction and feedforward in the thread's own reused pair (~60 us saved)."""
@@ -249,6 +296,7 @@ class FrictionNode(Node):
         """Stop the input and model threads, then destroy the node."""
         taken = self._taker.stop()
         self.live.stop()
+        self._planner.shutdown(wait=True, cancel_futures=True)
         if taken:
             for sub in self._inputs:
                 sub.destroy()
@@ -269,7 +317,9 @@ def main(args=None, on_spin=None):
         except KeyboardInterrupt:
             raise
         except Exception as exc:       # e.g. an unreadable --params-file
-            print(f"{NODE_NAME}: cannot start: {exc}", file=sys.stderr)
+            hint = interface.ros_log_dir_problem()
+            print(f"{NODE_NAME}: cannot start: {exc}" + (f" ({hint})" if hint else ""),
+                  file=sys.stderr)
             return 2
         try:
             node = FrictionNode()

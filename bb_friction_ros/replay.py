@@ -6,12 +6,17 @@ uses, so the predictions equal the node's for the same messages (tested).  The b
 streamed: each message is read, answered and written out before the next, so memory does not
 grow with the recording.  Writes ``prediction.csv``, ``summary.json``, PNG plots and ``bag/``:
 a rosbag2 (mcap) with the input topics copied and the node's output topics, for Foxglove,
-PlotJuggler or ``ros2 bag play``.
+PlotJuggler or ``ros2 bag play``.  Each output is logged at the log time of the input message
+it answers and stamped with that message's header stamp, so the bag keeps one time line, the
+recorder's, whatever clock the driver stamped with (a device clock near 0 s beside log times
+since 1970 made a bag span 54 years), and a header stamp before 1970 is written as it came.
 
 Into an ``--out`` used before, the earlier run's ``summary.json``, ``prediction.csv``, plot
 and ``bag/`` are removed first (``bag/`` also with ``--no-bag``), so nothing stale sits beside
 the new outputs; ``summary.json`` is written last with ``"complete": true``, or with
-``"complete": false`` if the run is interrupted (issue 23 #16, #17).  ``duration_s`` is the
+``"complete": false`` and the error if the run stops early: interrupted, a damaged message,
+a full disk.  If even that cannot be written, the partial outputs are removed: no output of
+a run that stopped is left unmarked.  ``duration_s`` is the
 recording's span in log time (when the recorder received the messages): one far-future
 header stamp does not make a 6-second bag last 2e9 s (issue 23 #20).
 """
@@ -35,7 +40,7 @@ import numpy as np
 from bb_friction_ros import interface
 from bb_friction_ros.bags import (BagError, BagInput, BagWriter, friction_typestore,
                                   MeasuredAligner, stamp_ns, Topics)
-from bb_friction_ros.config import bundled_config
+from bb_friction_ros.config import BBFrictionError, bundled_config
 from bb_friction_ros.node_parameters import NodeParameters
 from bb_friction_ros.runner import build_runner, InputAssembler, InputError, \
     InputSample
@@ -47,6 +52,7 @@ PREDICTION_TOPIC, GROUPS_TOPIC, FEEDFORWARD_TOPIC = OUTPUT_TOPICS = tuple(
     (interface.absolute(t), interface.TYPES[t]) for t in interface.REPLAYED_OUTPUTS)
 PLOT_FILE = "replay_torque_and_groups.png"
 SUMMARY_FILE = "summary.json"
+PREDICTION_FILE = "prediction.csv"
 BAG_DIR = "bag"
 
 
@@ -189,8 +195,9 @@ class _Series:
 # encapsulation header; doubles align to 8.
 _CDR_LE = b"\x00\x01\x00\x00"
 # FrictionPrediction: header (sec, nanosec, frame_id "" = length 1 + NUL, pad to 16), seven
-# float64, converged (bool, pad to 80), model_latency_s, model_age_s, n_groups.
-_PREDICTION_CDR = struct.Struct("<4siII1s3x7d?7x2dI")
+# float64, converged (bool, pad to 80), model_latency_s, model_age_s, n_groups (pad to 104),
+# torque_state_nm, state_other_direction.
+_PREDICTION_CDR = struct.Struct("<4siII1s3x7d?7x2dI4xd?")
 # Float64MultiArray: layout (no dims, data_offset 0), data of length 1 (pad to 16), the value.
 _FEEDFORWARD_CDR = struct.Struct("<4sIII4xd")
 
@@ -274,31 +281,47 @@ class _OutputBag:
         if out is not None:
             self.pending.append((out, log_ns, raw))
 
-    def publish(self, pred, stamp, latency_s):
-        """Queue what the node publishes for one prediction, logged at the input stamp."""
+    def publish(self, pred, stamp, log_ns, latency_s):
+        """
+        Queue what the node publishes for one prediction.
+
+        ``stamp``: the input's header stamp [ns], which the outputs carry unchanged (before
+        1970 too); ``log_ns``: the input's log time, at which they are logged, as a recorder
+        beside the live node would log them (its latency aside).  Logged at the header stamp,
+        a device-clock recording's outputs would lie decades from its inputs.
+        """
         sec, nanosec = divmod(stamp, 1_000_000_000)
         pending = self.pending
-        pending.append((self._prediction, stamp,
+        pending.append((self._prediction, log_ns,
                         prediction_cdr(pred, sec, nanosec, latency_s)))
         # the runner's safe value (held or 0 after a step that did not converge), as the node
-        pending.append((self._feedforward, stamp, feedforward_cdr(pred.feedforward_nm)))
+        pending.append((self._feedforward, log_ns, feedforward_cdr(pred.feedforward_nm)))
         self._answers += 1
         if pred.groups != self._last_groups:
             # The node publishes groups on change (and repeats them on a wall-clock timer,
             # which carries no new information and no input stamp: not reproduced here).
             self._last_groups = pred.groups
-            pending.append((self._groups, stamp, groups_cdr(
+            pending.append((self._groups, log_ns, groups_cdr(
                 pred.groups, sec, nanosec, pred.nut_angle_rad, pred.n_balls)))
             self._group_changes += 1
 
     def flush(self):
-        """Hand what is queued to the bag writer."""
-        self.bag.write_many(self.pending)
-        self.pending.clear()
+        """Hand what is queued to the bag writer (taken off the queue even if it fails)."""
+        try:
+            self.bag.write_many(self.pending)
+        finally:
+            self.pending.clear()
 
     def close(self):
         self.flush()
         self.bag.close()
+
+    def abandon(self):
+        """Close a bag whose run stopped early: what was queued is kept where it can be."""
+        try:
+            self.close()
+        except Exception:   # the error that stopped the run is the one reported
+            pass
 
 
 def csv_header(measured, empirical):
@@ -324,7 +347,9 @@ def replay(bag, out, config=None, settings=NodeParameters(), topics=Topics(), pr
 
     Raises FileNotFoundError or BagError (a ValueError) naming the file for a bag that
     cannot be used, and NothingAccepted when no nut_state sample was accepted (the summary
-    is written first).
+    is written first).  A run that stops early (a damaged message, a full disk, Ctrl-C)
+    leaves ``summary.json`` with ``"complete": false`` and the error beside what it wrote,
+    or, if that cannot be written, no outputs (``_mark_stopped``).
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -343,24 +368,32 @@ def replay(bag, out, config=None, settings=NodeParameters(), topics=Topics(), pr
             with _interrupt_between_messages() as interrupted, _long_lived_frozen():
                 summary = _stream(src, runner, assembler, out, measured, empirical, outbag,
                                   progress, interrupted)
-        except KeyboardInterrupt:
-            _write_summary(out, {"complete": False, "bag": str(bag),
-                                 "reason": "interrupted: prediction.csv and bag/ hold only "
-                                           "the part replayed"})
-            raise
-        finally:
             if outbag is not None:
                 outbag.close()
-        summary.update(bag=str(bag), model_rate_hz=settings.model_rate_hz,
-                       model_step_deg=settings.model_step_deg,
-                       topics=dict(src.topic_types))
-        if outbag is not None:
-            summary["output_bag"] = {"path": str(out / BAG_DIR), "written": outbag.written,
-                                     "not_copied": {t: why for (t, _), why
-                                                    in outbag.bag.not_copied.items()}}
-        for warning in summary.get("warnings", ()):
-            print(f"bb-friction replay: warning: {warning}", file=sys.stderr)
-        _write_summary(out, summary)
+            summary.update(bag=str(bag), model_rate_hz=settings.model_rate_hz,
+                           model_step_deg=settings.model_step_deg,
+                           topics=dict(src.topic_types),
+                           messages_of_unknown_topics=sum(
+                               sum(ids.values()) for ids in src.unknown_topic_messages.values()))
+            unread = src.warnings(all_topics=outbag is not None)
+            if unread:
+                summary["warnings"] = list(summary.get("warnings", [])) + unread
+            if outbag is not None:
+                summary["output_bag"] = {"path": str(out / BAG_DIR),
+                                         "written": outbag.written,
+                                         "not_copied": {t: why for (t, _), why
+                                                        in outbag.bag.not_copied.items()}}
+            for warning in summary.get("warnings", ()):
+                print(f"bb-friction replay: warning: {warning}", file=sys.stderr)
+            _write_summary(out, summary)          # last: "complete": true
+        except BaseException as exc:
+            if outbag is not None:
+                outbag.abandon()
+            marked = _mark_stopped(out, bag, exc)
+            if isinstance(exc, BagError):
+                # the bag's own words name the message or file; say what is left behind
+                raise BagError(f"{exc}; replay stopped there: {marked}") from None
+            raise
         if summary["samples"] == 0:
             raise NothingAccepted(nothing_accepted_message(src, runner.stats, settings))
     return summary
@@ -417,6 +450,35 @@ def _write_summary(out, summary):
     (out / SUMMARY_FILE).write_text(json.dumps(summary, indent=2))
 
 
+def _mark_stopped(out, bag, exc):
+    """
+    Mark the outputs of a run that stopped at ``exc``; return what is left, for the user.
+
+    ``summary.json`` says ``"complete": false`` with the error, beside the partial
+    ``prediction.csv`` and ``bag/``.  If it cannot be written (the disk is full),
+    the partial outputs are removed instead: none is left to be taken for a whole run's.
+    """
+    if isinstance(exc, KeyboardInterrupt):
+        summary = {"complete": False, "bag": str(bag),
+                   "reason": "interrupted: prediction.csv and bag/ hold only the part replayed"}
+    else:
+        error = str(exc) if isinstance(exc, BBFrictionError) else \
+            f"{type(exc).__name__}: {exc}"
+        summary = {"complete": False, "bag": str(bag),
+                   "reason": "stopped by an error: prediction.csv and bag/ hold only the "
+                             "messages before it",
+                   "error": error}
+    try:
+        _write_summary(out, summary)
+    except OSError:
+        try:
+            _remove_outputs(out)
+        except OSError:
+            return f"the partial outputs in {out} could not be marked or removed"
+        return f"the partial outputs in {out} were removed (summary.json could not be written)"
+    return f"the outputs in {out} are partial (summary.json: \"complete\": false)"
+
+
 def _remove_earlier_outputs(bag, out):
     """
     Remove what an earlier replay into ``out`` wrote and this one may not overwrite.
@@ -430,12 +492,18 @@ def _remove_earlier_outputs(bag, out):
     if src == own_bag or own_bag in src.parents:
         raise BagError(f"--out {out}: the input bag {bag} is replay's own output bag "
                        f"{out / BAG_DIR}, which a replay replaces; pass another --out")
-    for name in (SUMMARY_FILE, PLOT_FILE, "prediction.csv"):
+    _remove_outputs(out)
+
+
+def _remove_outputs(out):
+    """Remove replay's outputs from ``out``: summary, prediction, plot and output bag."""
+    for name in (SUMMARY_FILE, PLOT_FILE, PREDICTION_FILE):
         (out / name).unlink(missing_ok=True)
+    own_bag = out / BAG_DIR
     if own_bag.is_dir() and not own_bag.is_symlink():
         shutil.rmtree(own_bag)
-    elif (out / BAG_DIR).is_symlink() or own_bag.is_file():
-        (out / BAG_DIR).unlink()
+    elif own_bag.is_symlink() or own_bag.is_file():
+        own_bag.unlink()
 
 
 def _row_formats(measured, empirical):
@@ -457,6 +525,13 @@ def csv_values(pred, empirical):
         ((pred.torque_empirical_nm,) if empirical else ()) + (int(bool(pred.converged)),)
 
 
+def _write_lines(fh, lines):
+    """Write the queued prediction.csv lines; taken off the queue first, so never twice."""
+    chunk = "".join(lines)
+    lines.clear()
+    fh.write(chunk)
+
+
 def _stream(src, runner, assembler, out, measured, empirical, outbag, progress,
             interrupted=()):
     series = _Series(measured)
@@ -472,7 +547,7 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress,
     lines = []
     clock = time.perf_counter
     t0, cpu0 = clock(), time.process_time()
-    with open(out / "prediction.csv", "w", newline="") as fh:
+    with open(out / PREDICTION_FILE, "w", newline="") as fh:
         csv.writer(fh).writerow(csv_header(measured, empirical))
 
         def emit(done):
@@ -485,9 +560,9 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress,
                     sq_err += (meas - values[4]) ** 2
                     n_err += 1
 
-        def answered(pred, stamp_ns_, t_in):
+        def answered(pred, stamp_ns_, log_ns, t_in):
             if outbag is not None:
-                outbag.publish(pred, stamp_ns_, clock() - t_in)
+                outbag.publish(pred, stamp_ns_, log_ns, clock() - t_in)
             row = series.add(pred)
             values = csv_values(pred, empirical)
             if aligner is None:
@@ -495,63 +570,79 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress,
             else:
                 emit(aligner.add_prediction(pred.stamp_s, (values, row)))
 
-        for block in src.blocks(assembler.nut_joint, all_topics=outbag is not None):
-            if interrupted:
-                raise KeyboardInterrupt
-            if bar is not None:
-                bar.update(len(block.items))
-            items, kinds = block.items, block.kinds
-            fast = block.fast.tolist()
-            stamps, stamps_ns = block.stamp_s.tolist(), block.stamp_ns.tolist()
-            values, velocities = block.value.tolist(), block.velocity.tolist()
-            logs = [items[i][1] for i, kind in enumerate(kinds) if kind is not None]
-            if logs:
-                log_min, log_max = min(log_min, min(logs)), max(log_max, max(logs))
-            if outbag is not None:
-                copies, pending = outbag.copies, outbag.pending
-            for i, kind in enumerate(kinds):
+        try:
+            for block in src.blocks(assembler.nut_joint, all_topics=outbag is not None):
+                if interrupted:
+                    raise KeyboardInterrupt
+                if bar is not None:
+                    bar.update(len(block.items))
+                items, kinds = block.items, block.kinds
+                fast = block.fast.tolist()
+                stamps, stamps_ns = block.stamp_s.tolist(), block.stamp_ns.tolist()
+                values, velocities = block.value.tolist(), block.velocity.tolist()
+                logs = [items[i][1] for i, kind in enumerate(kinds) if kind is not None]
+                if logs:
+                    log_min, log_max = min(log_min, min(logs)), max(log_max, max(logs))
                 if outbag is not None:
-                    item = items[i]
-                    out_conn = copies.get(item[0].id)
-                    if out_conn is not None:
-                        pending.append((out_conn, item[1], item[2]))
-                if kind is None:
-                    continue
-                if fast[i]:
-                    # decoded with numpy (bags.Block): the node's own checks, inline
-                    if kind == "measured_torque":
+                    copies, pending = outbag.copies, outbag.pending
+                for i, kind in enumerate(kinds):
+                    # a message decoded one by one is decoded before its copy: a damaged one
+                    # stops the run before it reaches the output bag
+                    ev = block.event(i) if kind is not None and not fast[i] else None
+                    if outbag is not None:
+                        item = items[i]
+                        out_conn = copies.get(item[0].id)
+                        if out_conn is not None:
+                            pending.append((out_conn, item[1], item[2]))
+                    if kind is None:
+                        continue
+                    if fast[i]:
+                        # decoded with numpy (bags.Block): the node's own checks, inline
+                        if kind == "measured_torque":
+                            if aligner is not None:
+                                emit(aligner.add_measured(stamps[i], values[i]))
+                            continue
+                        if kind == "axial_load":
+                            try:
+                                assembler.on_axial_load(values[i])
+                            except InputError as err:
+                                runner.reject(err.reason)
+                            continue
+                        if assembler.load_n is not None:
+                            t_in = clock()
+                            pred = runner.process(InputSample(
+                                stamps[i], values[i], velocities[i], assembler.load_n))
+                            if pred is not None:
+                                answered(pred, stamps_ns[i], items[i][1], t_in)
+                            continue
+                    if ev is None:      # a nut_state before any load: rejected with its reason
+                        ev = block.event(i)
+                    if ev.kind == "measured_torque":
                         if aligner is not None:
-                            emit(aligner.add_measured(stamps[i], values[i]))
+                            emit(aligner.add_measured(ev.stamp_s, ev.value))
                         continue
-                    if kind == "axial_load":
-                        try:
-                            assembler.on_axial_load(values[i])
-                        except InputError as err:
-                            runner.reject(err.reason)
-                        continue
-                    if assembler.load_n is not None:
-                        t_in = clock()
-                        pred = runner.process(InputSample(
-                            stamps[i], values[i], velocities[i], assembler.load_n))
-                        if pred is not None:
-                            answered(pred, stamps_ns[i], t_in)
-                        continue
-                ev = block.event(i)       # decoded one by one; rejected with its reason
-                if ev.kind == "measured_torque":
-                    if aligner is not None:
-                        emit(aligner.add_measured(ev.stamp_s, ev.value))
-                    continue
-                t_in = clock()
-                pred = feed_event(ev, runner, assembler)
-                if pred is not None:
-                    answered(pred, stamp_ns(ev), t_in)
-            fh.write("".join(lines))
-            lines.clear()
-            if outbag is not None:
-                outbag.flush()
+                    t_in = clock()
+                    pred = feed_event(ev, runner, assembler)
+                    if pred is not None:
+                        answered(pred, stamp_ns(ev), items[i][1], t_in)
+                _write_lines(fh, lines)
+                if outbag is not None:
+                    outbag.flush()
+        except BaseException:
+            # keep what was answered before the failure: the partial outputs end where the
+            # run stopped (summary.json then says "complete": false)
+            try:
+                if aligner is not None:
+                    emit(aligner.finish())
+                _write_lines(fh, lines)
+                if outbag is not None:
+                    outbag.flush()
+            except Exception:   # the failure that stopped the run is the one reported
+                pass
+            raise
         if aligner is not None:
             emit(aligner.finish())
-        fh.write("".join(lines))
+        _write_lines(fh, lines)
         runner.settle()     # a step left to follow the last answer, as the node takes it
     wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
     if bar is not None:

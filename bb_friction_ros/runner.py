@@ -63,7 +63,8 @@ import numpy as np
 
 from bb_friction_ros.bags import LATE_SAMPLES_MAX, LATE_STAMP_TOLERANCE_S
 from bb_friction_ros.ball_screw.whole_screw import WholeScrew
-from bb_friction_ros.config import BBFrictionError
+from bb_friction_ros.config import BBFrictionError, ConfigError
+from bb_friction_ros.empirical_terms import TermSet
 from bb_friction_ros.model_file import load_model_file, NoPhysics, physics_of
 
 
@@ -123,10 +124,14 @@ class Prediction:
     stepped: bool               # this sample triggered a model step
     feedforward_nm: float = 0.0     # safe value for a controller (module docstring)
     feedforward_held: bool = False  # feedforward_nm is held from the last converged step
+    # the state's own torque (physics + the sample's terms), for diagnostics: the torques
+    # above are 0 N m when the state belongs to the other direction (state_other_direction)
+    torque_state_nm: float = 0.0
+    state_other_direction: bool = False
 
 
 # A Prediction is built for every input sample; the frozen dataclass's __init__ sets each of
-# its 15 fields through object.__setattr__: 1.9 us of the ~6 us the runner spends on a sample
+# its 17 fields through object.__setattr__: 1.9 us of the ~6 us the runner spends on a sample
 # answered from the held state (issue 20, replay at 1 rev/s).  ``_prediction`` fills the same
 # instance dict in one update (0.8 us): an equal, equally frozen and hashable Prediction.
 _PREDICTION_FIELDS = tuple(f.name for f in fields(Prediction))
@@ -134,7 +139,7 @@ _new_object = object.__new__
 
 
 def _prediction(*values):
-    """Return ``Prediction(*values)`` (all 15 fields, positional), built without __init__."""
+    """Return ``Prediction(*values)`` (all 17 fields, positional), built without __init__."""
     pred = _new_object(Prediction)
     pred.__dict__.update(zip(_PREDICTION_FIELDS, values))
     return pred
@@ -143,6 +148,23 @@ def _prediction(*values):
 def _sign(x):
     """Sign of a float as -1.0, 0.0 or 1.0 (np.sign costs ~1 us per scalar call)."""
     return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
+
+
+def interrupted(exc):
+    """
+    Tell whether ``exc`` is a Ctrl-C that compiled code turned into another exception.
+
+    A KeyboardInterrupt raised while numba's code runs comes out as a ``SystemError`` ("returned
+    a result with an exception set") chained to it.  Counted as a model error, the run went on
+    and exited 0 with spurious resets; it must stop the run instead.
+    """
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
 
 
 class InputError(BBFrictionError):
@@ -214,6 +236,9 @@ class RunnerStats:
     # bags.LATE_STAMP_TOLERANCE_S): answered from the current state, neither stepping nor
     # resetting it (issue 23, finding 6)
     late_samples: int = 0
+    # answers whose friction (the state and the friction terms) opposed the motion, cut to 0:
+    # a pre-rolling state right after a reversal
+    friction_cut: int = 0
     rejected: Counter = field(default_factory=Counter)   # by reason, inputs of both topics
     rejected_nut_state: int = 0     # nut-state samples never answered (in ``rejected`` too)
     last_step_wall_s: float = 0.0
@@ -287,6 +312,7 @@ class ModelRunner:
         self._held = None           # (torque, direction) of the last converged step
         self._late_run = 0          # consecutive late samples (see _is_late)
         self._last_extra = 0.0      # empirical torque of the last sample on time
+        self._last_friction = 0.0   # its friction terms' share (empirical_terms.NOT_FRICTION)
         self._last_angle = None     # nut angle of the last sample on time [rad]
         self._pending = None        # (sample, empirical torque): a step after its answer
         self._after_answer_rad = self.step_rad * step_after_answer_fraction
@@ -301,7 +327,7 @@ class ModelRunner:
             self._live_terms.reset()
         self._held = None
         self._late_run = 0
-        self._last_extra = 0.0
+        self._last_extra = self._last_friction = 0.0
         self._last_angle = None
         self._pending = None
 
@@ -435,7 +461,9 @@ class ModelRunner:
             return None
 
     def _model_error(self, exc, nut_state):
-        """Count a step that raised (``model_error``) and reset the state."""
+        """Count a step that raised (``model_error``) and reset the state; Ctrl-C stops."""
+        if interrupted(exc):
+            raise KeyboardInterrupt from exc
         self.reject("model_error", nut_state=nut_state)
         self.stats.last_error = repr(exc)
         self.reset()
@@ -517,19 +545,22 @@ class ModelRunner:
                 self.stats.skipped_steps += 1
                 self._coarsen(sample.stamp_s)
         self._last_stamp = sample.stamp_s
-        extra = 0.0
+        extra = friction = 0.0
         if self._live_terms is not None:
             extra = self._live_terms.torque_nm(
                 sample.stamp_s, sample.stamp_s - self._first_stamp, sample.nut_angle_rad,
                 sample.nut_velocity_rad_s, sample.axial_load_n)
-        self._last_extra = extra
+            friction = self._live_terms.last_friction_nm
+        self._last_extra, self._last_friction = extra, friction
         self._last_angle = sample.nut_angle_rad
         if after:
             self._pending = (sample, extra)
         elif step:
             self._step_to(sample, extra)
         elif stepped:
-            self._update_held(self._state.torque_total_nm + extra, sample.nut_velocity_rad_s)
+            self._update_held(self._with_terms(self._state.torque_total_nm, extra,
+                                               sample.nut_velocity_rad_s)[0],
+                              sample.nut_velocity_rad_s)
         return self._answer(sample, extra, stepped or step,
                             sample.stamp_s - self._model_stamp)
 
@@ -542,7 +573,24 @@ class ModelRunner:
         """
         self._substeps_to(sample)
         self._take_step(sample, sample.stamp_s - self._model_stamp)
-        self._update_held(self._state.torque_total_nm + extra, sample.nut_velocity_rad_s)
+        self._update_held(self._with_terms(self._state.torque_total_nm, extra,
+                                           sample.nut_velocity_rad_s)[0],
+                          sample.nut_velocity_rad_s)
+
+    def _with_terms(self, state_nm, extra, nut_velocity_rad_s):
+        """
+        Return (the state's torque plus the terms', True if its friction was cut to 0).
+
+        The friction (the state's torque and the terms that are friction) never opposes the
+        motion in an answer: a fitted pre-rolling state right after a reversal, or any term
+        that overturns the physics, would make every topic that carries it push the axis
+        along its motion.  Cut, it is 0 N m (the build-up of pre-rolling from 0); the terms
+        that are not friction (inertia, offset, lead error, ripple) stay.
+        """
+        friction = state_nm + self._last_friction
+        if friction * nut_velocity_rad_s < 0.0:
+            return extra - self._last_friction, True
+        return state_nm + extra, False
 
     def _answer_late(self, sample):
         """Answer a late sample (``_is_late``) from the current state: no step, no reset."""
@@ -558,27 +606,37 @@ class ModelRunner:
     def _answer(self, sample, extra, stepped, model_age_s):
         """Return the Prediction for ``sample`` from the current state, with its feedforward."""
         st = self._state
-        total = st.torque_total_nm + extra
+        total = state_total = st.torque_total_nm + extra
+        b2g, b2b = st.torque_b2g_nm, st.torque_b2b_nm
         converged = self._state_converged
         direction = _sign(sample.nut_velocity_rad_s)
-        if direction == 0.0 or direction != self._model_direction:
+        other = direction != 0.0 and direction != self._model_direction
+        if direction == 0.0 or other:
             # A state of the other direction (a skipped reversal step) or a standing nut:
             # the state's Coulomb torque would push the axis the wrong way, or hold it.
             ff, held = 0.0, False
             if converged and total != 0.0:
                 self.stats.feedforward_zeroed += 1
-        elif converged:
+            if other:
+                # No topic a controller may read carries that torque as if it were valid:
+                # the prediction answers 0 N m, not converged, and says why; the state's
+                # own torque stays in torque_state_nm for diagnostics.
+                total = b2g = b2b = extra = 0.0
+                converged = False
+        elif converged:         # (an unconverged answer keeps its raw numbers, flagged)
+            total, cut = self._with_terms(st.torque_total_nm, extra, direction)
+            if cut:             # the parts still sum to the total
+                self.stats.friction_cut += 1
+                extra = total - b2g - b2b
             ff, held = total, False
         else:
             ff, held = 0.0, True
-            if self._held is not None \
-                    and self._held[1] == _sign(sample.nut_velocity_rad_s) != 0.0:
+            if self._held is not None and self._held[1] == direction:
                 ff = self._held[0]
         return _prediction(sample.stamp_s, sample.nut_angle_rad, sample.nut_velocity_rad_s,
-                           sample.axial_load_n, total, st.torque_b2g_nm,
-                           st.torque_b2b_nm, extra, converged,
+                           sample.axial_load_n, total, b2g, b2b, extra, converged,
                            model_age_s, self._state_groups,
-                           self._state_n_balls, stepped, ff, held)
+                           self._state_n_balls, stepped, ff, held, state_total, other)
 
     def _substeps_to(self, sample):
         """
@@ -822,6 +880,38 @@ def look_ahead_profile(seed, horizon_periods=2.0, n_points=3, should_stop=None):
     return angles, torques, converged
 
 
+def run_starts(stamps_s):
+    """
+    Return (starts, late): where the runner starts a run, and which samples it takes as late.
+
+    The runner's own rule (``ModelRunner._is_late``), for the stamps of the nut-state samples
+    it answers, in order: a stamp back by at most ``LATE_STAMP_TOLERANCE_S``, at most
+    ``LATE_SAMPLES_MAX`` in a row, is late (answered, no reset); any other backward stamp
+    restarts.  The analysis of a recording cuts its runs here, so that one late stamp does
+    not restart its clock where the runner carried on.
+    """
+    t = np.asarray(stamps_s, dtype=float)
+    starts = np.zeros(t.size, dtype=bool)
+    late = np.zeros(t.size, dtype=bool)
+    if t.size == 0:
+        return starts, late
+    starts[0] = True
+    if np.all(np.diff(t) >= 0.0):
+        return starts, late
+    last, run = t[0], 0
+    for i in range(1, t.size):
+        back = last - t[i]
+        if back > 0.0:
+            if back <= LATE_STAMP_TOLERANCE_S and run < LATE_SAMPLES_MAX:
+                late[i] = True
+                run += 1
+                continue
+            starts[i] = True
+        run = 0
+        last = t[i]
+    return starts, late
+
+
 class InputAssembler:
     """
     Turn the two input streams into InputSamples, exactly as the node receives them.
@@ -884,6 +974,20 @@ class InputAssembler:
         return InputSample(stamp_s, angle, velocity, self.load_n)
 
 
+def load_checked_model(config_path):
+    """
+    Return (config, terms, screw model) of a model file whose friction has the right sign.
+
+    Raises FrictionSignError (``check_friction_sign``) for one that follows the motion.
+    """
+    cfg, terms = load_model_file(config_path)
+    # physics: none (a discrepancy --baseline zero model): the terms are the whole torque
+    screw = NoPhysics() if physics_of(config_path) == "none" else WholeScrew(cfg)
+    check_friction_sign(screw, terms, config_path, cfg.operation.axial_load_n,
+                        cfg.operation.nut_velocity_rad_s)
+    return cfg, terms, screw
+
+
 def build_runner(config_path, model_rate_hz, model_step_deg=None, max_model_step_deg=None,
                  step_after_answer_fraction=None):
     """
@@ -893,13 +997,86 @@ def build_runner(config_path, model_rate_hz, model_step_deg=None, max_model_step
     torque to every prediction.  ``model_step_deg``/``max_model_step_deg`` None: the node's
     defaults (``node_parameters.NodeParameters``), and so is ``step_after_answer_fraction``.
     """
-    cfg, terms = load_model_file(config_path)
-    # physics: none (a discrepancy --baseline zero model): the terms are the whole torque
-    screw = NoPhysics() if physics_of(config_path) == "none" else WholeScrew(cfg)
+    cfg, terms, screw = load_checked_model(config_path)
     runner = ModelRunner(screw, model_rate_hz, terms if len(terms) else None,
                          model_step_deg, max_model_step_deg, step_after_answer_fraction)
     runner.warm_up(cfg.operation.axial_load_n, cfg.operation.nut_velocity_rad_s)
     return runner
+
+
+# Loads at which a model's friction sign is checked, as multiples of its operating load: the
+# physics and the load-dependent terms are close to linear in |W|, so the ends and the middle of
+# twice the operating range find a term that overturns the physics there.
+SIGN_CHECK_LOAD_FACTORS = (0.0, 1.0, 2.0)
+# Points along a stroke_position term's fitted stroke (its polynomial is held beyond it).
+SIGN_CHECK_STROKE_POINTS = 9
+# Run time at which a thermal_drift term is taken as settled [s] (its exp(-t/tau) is 0).
+SIGN_CHECK_SETTLED_S = 1e12
+
+
+class FrictionSignError(ConfigError):
+    """A model whose friction has the sign opposite to the nut velocity: it would push along."""
+
+
+def friction_sign_violations(screw, terms, axial_load_n, nut_velocity_rad_s):
+    """
+    Return the states where a model's friction does not have the sign of the nut velocity.
+
+    Friction is dissipated at the contacts: on the nut it acts against the motion, so in the
+    model's convention (the torque the drive spends on it) it has the sign of the velocity.
+    A model that gives the opposite sign would make every controller that feeds it forward
+    push the axis along its motion.  The physics (a cold step of ``screw``) plus the terms
+    that are friction (``empirical_terms.NOT_FRICTION`` left out) are evaluated in both
+    directions at |W| = ``SIGN_CHECK_LOAD_FACTORS`` x ``axial_load_n``, at the start and after
+    the warm-up of a ``thermal_drift`` term, and along a ``stroke_position`` term's stroke.
+    Returns a list of (load N, velocity rad/s, friction N m), empty when the sign holds.
+    """
+    speed = abs(nut_velocity_rad_s) or 1.0
+    if terms is not None:       # in steady motion a pre-rolling term is 0 (z = sign omega);
+        # after a reversal the answers cut its friction at 0 (ModelRunner._with_terms)
+        terms = TermSet(t for t in terms.terms if t.name != "pre_rolling")
+    angles = [0.0]
+    for t in (terms.terms if terms is not None else ()):
+        if t.name == "stroke_position":
+            p = t.params
+            angles += list(p.center_rad + p.half_range_rad
+                           * np.linspace(-1.0, 1.0, SIGN_CHECK_STROKE_POINTS))
+    angles = np.array(angles)
+    bad = []
+    for factor in SIGN_CHECK_LOAD_FACTORS:
+        load = factor * abs(axial_load_n)
+        for w in (speed, -speed):
+            sign = math.copysign(1.0, w)
+            screw.reset(0.0)
+            # friction x sign(velocity): >= 0 for a torque that dissipates
+            along = sign * float(screw.step(0.0, w, load, 0.0).torque_total_nm)
+            if terms is not None and len(terms):
+                along = along + np.minimum(
+                    sign * terms.friction_nm(0.0, angles, w, load),
+                    sign * terms.friction_nm(SIGN_CHECK_SETTLED_S, angles, w, load)).min()
+            if along < 0.0:
+                bad.append((load, w, sign * float(along)))
+    return bad
+
+
+def check_friction_sign(screw, terms, config_path, axial_load_n, nut_velocity_rad_s):
+    """
+    Refuse a model whose friction follows the motion (``friction_sign_violations``).
+
+    Raises FrictionSignError (a config error: the CLI exits 2, the node refuses to start)
+    naming the file and the first state; a model fitted to a measured torque of the wrong
+    sign (a motor current positive in the other direction) is the usual cause.
+    """
+    bad = friction_sign_violations(screw, terms, axial_load_n, nut_velocity_rad_s)
+    if bad:
+        load, w, torque = bad[0]
+        raise FrictionSignError(
+            f"{config_path}: its friction follows the motion (friction {torque:.4g} N m at nut "
+            f"velocity {w:.4g} rad/s and |axial load| {load:.4g} N; {len(bad)} of "
+            f"{2 * len(SIGN_CHECK_LOAD_FACTORS)} checked states): friction has the sign of the "
+            "nut velocity, so a controller feeding this model forward would push the axis "
+            "along its motion; was it fitted to a measured torque or motor current of the "
+            "opposite sign convention?")
 
 
 def _groups(groups):

@@ -413,3 +413,21 @@ def test_a_damaged_message_is_named_alike_by_blocks_and_messages(tmp_path):
             errors.append(str(err.value))
     assert errors[0] == errors[1] and "damaged message 24 on /nut_state" in errors[0] \
         and "log time 47 ns" in errors[0], errors
+
+
+@pytest.mark.parametrize("log_ns", [-5, 2 ** 64])
+def test_a_log_time_outside_a_bags_range_is_refused_naming_it(tmp_path, log_ns):
+    """
+    mcap logs in unsigned 64-bit ns since 1970: a log time before 1970 (or past 2^64 ns) is
+    a BagError naming the bag, the topic and the time, not an OverflowError from the batched
+    writer.
+    """
+    from bb_friction_ros.bags import BagWriter
+    raw = b"\x00\x01\x00\x00\x01\x00\x00\x00\x00"       # std_msgs/String ""
+    with pytest.raises(BagError) as err:
+        with BagWriter(tmp_path / "bag", storage="mcap") as out:
+            conn = out.connection("/x", "std_msgs/msg/String")
+            out.write_raw(conn, 5, raw)
+            out.write_raw(conn, log_ns, raw)
+    assert str(err.value).startswith(f"{tmp_path / 'bag'}: cannot log a message on /x at "
+                                     f"{log_ns} ns")

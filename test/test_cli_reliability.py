@@ -121,9 +121,10 @@ FILE_SIZE_LIMIT_B = 48 * 1024
 def long_bag(tmp_path_factory):
     """A 2 s reversing recording at 1 kHz with a measured torque (2000 nut_state samples)."""
     from bb_friction_ros.bags import write_events
-    from recordings import short_recording
+    from recordings import model_friction, short_recording
     bag = tmp_path_factory.mktemp("disk") / "bag"
-    write_events(bag, short_recording(state_rate_hz=1000.0, segment_s=1.0))
+    write_events(bag, short_recording(state_rate_hz=1000.0, segment_s=1.0,
+                                      measured=model_friction))
     return bag
 
 
@@ -205,3 +206,43 @@ def test_an_input_error_in_a_cli_path_exits_2_with_its_message(tmp_path, monkeyp
     assert main(["screw-sim", "--steps", "1", "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
     assert "x.csv: column t_s never advances" in err and "Traceback" not in err
+
+
+def test_ros_log_dir_that_cannot_be_made_is_named_with_the_fix(tmp_path):
+    from bb_friction_ros.interface import ros_log_dir, ros_log_dir_problem
+    assert "set ROS_LOG_DIR" in ros_log_dir_problem({"HOME": "/dev/null"})
+    assert ros_log_dir({"ROS_HOME": str(tmp_path)}) == str(tmp_path / "log")
+    assert ros_log_dir_problem({"ROS_LOG_DIR": str(tmp_path / "new" / "log")}) is None
+
+
+def test_node_with_an_unwritable_home_names_ros_log_dir():
+    """rclpy.init's RCLError said neither where it wanted to log nor how to move it."""
+    import os
+    import subprocess
+    import sys
+    env = dict(os.environ, HOME="/dev/null")
+    env.pop("ROS_LOG_DIR", None)
+    env.pop("ROS_HOME", None)
+    run = subprocess.run([sys.executable, "-m", "bb_friction_ros.node_entry"], env=env,
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 2, run.stderr
+    assert "ROS_LOG_DIR" in run.stderr and "Traceback" not in run.stderr
+
+
+def test_ctrl_c_during_the_demo_exits_130_without_a_traceback(tmp_path):
+    import signal
+    import subprocess
+    import sys
+    proc = subprocess.Popen([sys.executable, "-m", "bb_friction_ros.cli", "demo", "--out",
+                             str(tmp_path / "demo")], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        for line in proc.stdout:            # the node is playing the recording
+            if "playing it through" in line:
+                break
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, err
+    assert "interrupted" in err and "Traceback" not in err and "terminate" not in err

@@ -21,6 +21,7 @@ NEW_TERMS = [
     {"name": "offset", "params": {"torque_nm": -0.01}},
     {"name": "coulomb_asymmetry", "params": {"delta_torque_nm": 0.004}},
     {"name": "viscous_asymmetry", "params": {"delta_c_nm_s_per_rad": -1e-4}},
+    {"name": "pre_rolling", "params": {"torque_nm": 0.02, "travel_rad": 0.003}},
     {"name": "stroke_position", "params": {"center_rad": 50.0, "half_range_rad": 40.0,
                                            "p1_nm": 0.01, "p2_nm": -0.004}},
     {"name": "angle_ripple", "params": {"sin1_nm": 0.003, "cos2_nm": 0.001}},
@@ -104,7 +105,7 @@ def test_edge_units_and_no_terms():
 
 
 @pytest.mark.parametrize("entry", [e for e in ALL_TERMS if e["name"] != "lead_error"]
-                         + [NEW_TERMS[4]])
+                         + [e for e in NEW_TERMS if e["name"] == "stroke_position"])
 def test_dissipative_terms_oppose_motion_and_vanish_at_standstill(entry):
     term = load_terms([entry])
     w = np.array([-5.0, -0.5, 0.0, 0.5, 5.0])
@@ -151,8 +152,12 @@ FULL_TERMS = [
 ]
 
 
-@pytest.mark.parametrize("entries", [[e] for e in ALL_TERMS + NEW_TERMS + FULL_TERMS]
-                         + [ALL_TERMS + NEW_TERMS + FULL_TERMS],
+# The stateless terms: a single sample's torque is a function of that sample alone (the
+# pre-rolling state is compared over whole sequences in test_pre_rolling.py).
+STATELESS = [e for e in ALL_TERMS + NEW_TERMS + FULL_TERMS if e["name"] != "pre_rolling"]
+
+
+@pytest.mark.parametrize("entries", [[e] for e in STATELESS] + [STATELESS],
                          ids=lambda es: es[0]["name"] if len(es) == 1 else "all")
 def test_live_terms_equal_the_vectorised_terms_bit_for_bit(entries):
     """

@@ -34,7 +34,7 @@ def test_prediction_values_follow_the_field_order():
     names = [f.name for f in __import__("dataclasses").fields(Prediction)]
     assert set(interface.PREDICTION_FROM_RUNNER) <= set(names)
     values = {n: float(i + 1) for i, n in enumerate(names)}
-    values.update(converged=True, groups=((1, 2), ((3, 4), (5.0,))))
+    values.update(converged=True, state_other_direction=True, groups=((1, 2), ((3, 4), (5.0,))))
     pred = Prediction(**values)
     got = dict(zip(interface.PREDICTION_FIELDS, interface.prediction_values(pred, 0.25)))
     for name in interface.PREDICTION_FROM_RUNNER:
@@ -91,7 +91,11 @@ def test_the_names_are_the_contract():
     assert (interface.NUT_STATE, interface.AXIAL_LOAD, interface.MEASURED_TORQUE) == \
         ("nut_state", "axial_load", "measured_torque")
     assert interface.OUTPUTS == ("friction/prediction", "friction/feedforward",
-                                 "friction/feedforward_profile", "friction/contact_groups")
+                                 "friction/feedforward_profile", "friction/contact_groups",
+                                 "friction/planned_feedforward")
+    assert interface.PLANNED_TRAJECTORY == "friction/planned_trajectory"
+    assert interface.TYPES[interface.PLANNED_TRAJECTORY] == \
+        interface.TYPES[interface.PLANNED_FEEDFORWARD] == "trajectory_msgs/msg/JointTrajectory"
     assert interface.DIAGNOSTICS == "/diagnostics"
     assert interface.TYPES[interface.FEEDFORWARD] == "std_msgs/msg/Float64MultiArray"
     assert interface.TYPES[interface.NUT_STATE] == "sensor_msgs/msg/JointState"

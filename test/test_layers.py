@@ -20,7 +20,7 @@ LAYERS = {
     2: {"linear_bearing", "ball_screw", "empirical_terms", "model_file"},
     3: {"runner", "live", "bags", "interface", "node_parameters", "feedforward"},
     4: {"replay", "node", "ros_inputs", "node_entry", "harness", "pytest_plugin", "testing",
-        "trajectories"},
+        "trajectories", "planned"},
     5: {"discrepancy", "sweep", "demo", "reproduce", "servo"},
     6: {"cli"},
 }
@@ -29,7 +29,7 @@ LAYERS = {
 # installed share directory is; it works without it.)
 FIRST_ROS_LAYER = 4
 ROS_MODULES = ("rclpy", "rcl_interfaces", "builtin_interfaces", "std_msgs", "sensor_msgs",
-               "geometry_msgs", "diagnostic_msgs", "bb_friction_msgs")
+               "geometry_msgs", "diagnostic_msgs", "bb_friction_msgs", "trajectory_msgs")
 
 
 def component(module):

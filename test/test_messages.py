@@ -42,6 +42,8 @@ CONTRACTS = {
         'model_latency_s': 'double',
         'model_age_s': 'double',
         'n_groups': 'uint32',
+        'torque_state_nm': 'double',
+        'state_other_direction': 'boolean',
     },
     ContactGroup: {
         'ball_ids': 'sequence<uint32>',
@@ -85,6 +87,8 @@ SAMPLES = {
         'model_latency_s': 1.25e-3,
         'model_age_s': 0.02,
         'n_groups': 3,
+        'torque_state_nm': 0.0064,
+        'state_other_direction': False,
     },
     ContactGroup: GROUPS[2],
     ContactGroupStatus: {

@@ -1,6 +1,6 @@
 """
-friction_node: the feedforward never opposes the motion when its model falls behind
-(issue 23, finding 1).
+friction_node: neither the feedforward nor the prediction opposes the motion when its model
+falls behind.
 
 In-process under rclpy (test_node_servo.Probe).  A deliberately slow model makes the node's
 queue span model periods, so reversal steps are skipped (``allow_step=False``); every answer
@@ -38,12 +38,14 @@ def test_velocity_noise_on_a_lagging_node_never_feeds_forward_against_the_motion
     """+-0.02 rad/s noise flipping sign every 1 ms stamp, sent as a burst of 600 inputs."""
     runner = ModelRunner(SlowScrew(), 100.0)
     probe = Probe(ros_context, {"queue_size": 100000}, runner=runner)
-    answers = []
+    answers, predicted = [], []
     node = probe.node
     publish = node.live.outputs.answer
 
     def record(pred, *args):
         answers.append((pred.nut_velocity_rad_s, pred.feedforward_nm))
+        predicted.append((pred.nut_velocity_rad_s, pred.torque_total_nm, pred.converged,
+                          pred.state_other_direction))
         return publish(pred, *args)
 
     node.live.outputs.answer = record
@@ -64,5 +66,10 @@ def test_velocity_noise_on_a_lagging_node_never_feeds_forward_against_the_motion
         assert not wrong, f"{len(wrong)} of {len(answers)} answers oppose the motion"
         assert values["feedforward_zeroed"] > 50
         assert any(ff != 0.0 for _, ff in answers)
+        # friction/prediction, the richer message a controller may read, neither: a state of
+        # the other direction answers 0 N m, not converged, flagged
+        assert not [p for p in predicted if p[1] * p[0] < 0.0]
+        flagged = [p for p in predicted if p[3]]
+        assert flagged and all(p[1] == 0.0 and not p[2] for p in flagged)
     finally:
         probe.close()

@@ -38,6 +38,7 @@ ROSDEP_KEYS = {
     'std_msgs': 'std_msgs',
     'geometry_msgs': 'geometry_msgs',
     'sensor_msgs': 'sensor_msgs',
+    'trajectory_msgs': 'trajectory_msgs',
     'diagnostic_msgs': 'diagnostic_msgs',
     'bb_friction_msgs': 'bb_friction_msgs',
 }

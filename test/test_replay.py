@@ -161,7 +161,8 @@ def test_packed_prediction_and_feedforward_are_rosbags_own_cdr():
         v = rng.normal(0.0, 10.0, 10)
         stamp = int(rng.integers(0, 2**31 - 1)) * 1_000_000_000 + int(rng.integers(0, 10**9))
         groups = tuple(((1, 2), (3.0,)) for _ in range(k % 4))
-        pred = Prediction(0.0, *v[:7], bool(k % 3), v[7], groups, 37, False, v[8])
+        pred = Prediction(0.0, *v[:7], bool(k % 3), v[7], groups, 37, False, v[8], False,
+                          v[4] + 1.0, bool(k % 2))
         sec, nanosec = divmod(stamp, 1_000_000_000)
         header = t["std_msgs/msg/Header"](
             stamp=t["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec), frame_id="")
@@ -169,7 +170,8 @@ def test_packed_prediction_and_feedforward_are_rosbags_own_cdr():
             header=header, nut_angle_rad=v[0], nut_velocity_rad_s=v[1], axial_load_n=v[2],
             torque_total_nm=v[3], torque_b2g_nm=v[4], torque_b2b_nm=v[5],
             torque_empirical_nm=v[6], converged=bool(k % 3), model_latency_s=v[9],
-            model_age_s=v[7], n_groups=len(groups))
+            model_age_s=v[7], n_groups=len(groups), torque_state_nm=v[4] + 1.0,
+            state_other_direction=bool(k % 2))
         assert prediction_cdr(pred, sec, nanosec, v[9]) == \
             bytes(store.serialize_cdr(msg, PREDICTION_TOPIC[1], little_endian=True))
         ff = t[FEEDFORWARD_TOPIC[1]](layout=t["std_msgs/msg/MultiArrayLayout"](
@@ -216,7 +218,8 @@ def test_replay_bag_feedforward_is_the_safe_value_of_unconverged_steps(tmp_path)
                      feedforward_nm=0.21, feedforward_held=True)
     out = _OutputBag(tmp_path / "bag", [])
     for pred in (good, bad):
-        out.publish(pred, int(round(pred.stamp_s * 1e9)), 0.001)
+        stamp = int(round(pred.stamp_s * 1e9))
+        out.publish(pred, stamp, stamp, 0.001)
     out.close()
     store = friction_typestore()
     got = {}
@@ -412,7 +415,7 @@ def test_missing_or_mistyped_topics_exit_2_naming_them(tmp_path, capsys, types, 
 
 
 def test_summary_counts_messages_read_not_metadata(tmp_path):
-    """Issue 13 finding 13: metadata.yaml claiming 99,999 messages does not fool the summary."""
+    """metadata.yaml claiming 99,999 messages does not fool the summary, and is warned about."""
     import yaml
     events = _states(n=45)
     write_events(tmp_path / "bag", events, storage="mcap")
@@ -427,6 +430,10 @@ def test_summary_counts_messages_read_not_metadata(tmp_path):
     summary = replay(tmp_path / "bag", tmp_path / "out", progress=False)
     assert summary["messages"]["/nut_state"] == 45
     assert summary["messages"]["/axial_load"] == 1
+    # and the disagreement is said, not left for the user to find
+    (listed,) = [w for w in summary["warnings"] if str(meta_path) in w]
+    assert "99999 on /axial_load (1 read), 99999 on /measured_torque (0 read), " \
+        "99999 on /nut_state (45 read)" in listed
 
 
 def test_looping_bag_aligns_measurement_within_each_run(tmp_path):

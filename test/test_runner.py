@@ -156,8 +156,14 @@ def test_skipped_reversal_never_feeds_forward_the_old_direction():
     # the state's torque is fed forward where its direction matches (not all zeroed)
     assert sum(p.converged and p.feedforward_nm != 0.0 for p in preds) > 100
     assert runner.stats.feedforward_zeroed > 100
-    # the converged torque itself is kept in the prediction, only the feedforward is 0
-    assert any(p.converged and p.torque_total_nm * p.nut_velocity_rad_s < 0 for p in preds)
+    # no answer carries the other direction's torque as valid either: the prediction says
+    # 0 N m, not converged, and why; the state's own torque stays for diagnostics
+    other = [p for p in preds if p.state_other_direction]
+    assert len(other) > 100
+    assert all(p.torque_total_nm == p.torque_b2g_nm == p.torque_b2b_nm == 0.0
+               and not p.converged for p in other)
+    assert any(p.torque_state_nm * p.nut_velocity_rad_s < 0 for p in other)
+    assert not [p for p in preds if p.torque_total_nm * p.nut_velocity_rad_s < 0]
 
 
 def test_lowered_load_limit_applies_to_the_held_load():
@@ -515,7 +521,7 @@ def test_predictions_built_without_init_are_the_dataclass_s_own():
     import dataclasses
     from bb_friction_ros.runner import _prediction, Prediction
     values = (100.001, 0.25, 6.28, 1500.0, 0.21, 0.2, 0.01, 0.0, True, 0.0005,
-              (((1, 2), (0.3,)),), 37, False, 0.21, False)
+              (((1, 2), (0.3,)),), 37, False, 0.21, False, 0.21, False)
     assert len(values) == len(dataclasses.fields(Prediction))
     fast, slow = _prediction(*values), Prediction(*values)
     assert type(fast) is Prediction

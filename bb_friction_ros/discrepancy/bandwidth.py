@@ -44,6 +44,7 @@ import numpy as np
 
 from bb_friction_ros.config import ConfigError
 from bb_friction_ros.empirical_terms import zero_phase_acceleration
+from bb_friction_ros.runner import run_starts
 
 
 def sample_step_s(rec):
@@ -90,18 +91,21 @@ def with_acceleration(rec, settings, spec=None):
     if rec.nut_accel_rad_s2 is not None or whole is None:
         return rec, whole
     accel = np.full(len(rec), np.nan)
-    starts = np.concatenate(([0], np.flatnonzero(np.diff(rec.t_s) < 0.0) + 1, [len(rec)]))
     cutoffs = []
-    for lo, hi in zip(starts[:-1], starts[1:]):
-        run = rec.take(slice(lo, hi))
+    for sl in run_slices(rec):
+        # late samples (a stamp a little behind, the runner's rule) in stamp order: the
+        # filter's time must not run backwards within a run
+        order = np.argsort(rec.t_s[sl], kind="stable")
+        run = rec.take(sl).take(order)
         own = acceleration_filter_of(run, settings, whole["accel_cutoff_hz"])
         if own is None:
             continue
         fc = min(whole["accel_cutoff_hz"], own["accel_cutoff_hz"])
         cutoffs.append(fc)
-        accel[lo:hi] = zero_phase_acceleration(run.t_s, run.nut_velocity_rad_s, fc,
-                                               own["max_gap_s"],
-                                               settings.accel_min_segment_samples)
+        a = np.empty(order.size)
+        a[order] = zero_phase_acceleration(run.t_s, run.nut_velocity_rad_s, fc,
+                                           own["max_gap_s"], settings.accel_min_segment_samples)
+        accel[sl] = a
     info = dict(rec.info)
     if cutoffs and (min(cutoffs) < whole["accel_cutoff_hz"]):
         info["acceleration_run_cutoff_hz"] = [min(cutoffs), max(cutoffs)]
@@ -162,9 +166,28 @@ class CutoffChoice:
 
 
 def run_slices(rec):
-    """Return the slices of the runs of a recording (a run restarts where t_s goes back)."""
-    starts = np.concatenate(([0], np.flatnonzero(np.diff(rec.t_s) < 0.0) + 1, [len(rec)]))
+    """Return the slices of the runs of a recording: where the runner resets (run_starts)."""
+    starts = np.concatenate((np.flatnonzero(run_starts(rec.t_s)[0]), [len(rec)]))
     return [slice(int(a), int(b)) for a, b in zip(starts[:-1], starts[1:])]
+
+
+def grid_step_s(rec, min_share):
+    """
+    Return the sample step [s] whose safe cut-off tops the cut-off grid.
+
+    It is the step of the fastest rate at which, with the faster ones, at least
+    ``min_share`` of the samples were taken.
+    """
+    steps, rows = [], []
+    for sl in run_slices(rec):
+        step = sample_step_s(rec.take(sl))
+        if step is not None:
+            steps.append(step)
+            rows.append(sl.stop - sl.start)
+    order = np.argsort(steps)               # fastest first
+    cum = np.cumsum(np.asarray(rows)[order])
+    k = int(np.searchsorted(cum, min_share * cum[-1] * (1.0 - 1e-12)))
+    return float(np.asarray(steps)[order][min(k, len(steps) - 1)])
 
 
 def cutoff_grid(step_s, settings):
@@ -213,12 +236,19 @@ def choose_cutoff(rec, settings, usable):
     if step is None or rec.nut_accel_rad_s2 is not None:
         return None
     # a file of several recorder runs may mix rates (the RViMLab exports: 4-156 Hz): the
-    # grid reaches the fastest run's safe cut-off; each run is still capped at its own
-    step = min(s for s in (sample_step_s(rec.take(sl)) for sl in run_slices(rec))
-               if s is not None)
+    # grid reaches the safe cut-off of the fastest rate that holds accel_grid_min_share of
+    # the samples (a short fast run among slow ones set 400 Hz for a file 99 % filtered at
+    # 10 Hz); each run is still capped at its own
+    step = grid_step_s(rec, settings.accel_grid_min_share)
     rate = 1.0 / step
     top = max_cutoff_hz(step, settings)
     if settings.accel_cutoff_hz > 0:
+        if settings.accel_cutoff_hz < settings.accel_min_cutoff_hz:
+            raise ConfigError(
+                f"discrepancy.accel_cutoff_hz: {settings.accel_cutoff_hz:g} Hz is below "
+                f"accel_min_cutoff_hz = {settings.accel_min_cutoff_hz:g} Hz (the filter "
+                "would lag by more than any acceleration phase); set 0 to choose it from the "
+                "data")
         if settings.accel_cutoff_hz > top * (1 + 1e-9):
             raise ConfigError(
                 f"discrepancy.accel_cutoff_hz: {settings.accel_cutoff_hz:g} Hz is above the "

@@ -47,14 +47,15 @@ def add_discrepancy_parser(subparsers):
                    "whose torque_pred_nm is 0 does the same)")
     p.add_argument("--torque-constant-nm-per-a", type=float, metavar="K",
                    help="the measured torque is K [N m/A] times the motor current: the CSV "
-                   "column motor_current_a, or the bag topic --current-topic (issue 19)")
+                   "column motor_current_a, or the bag topic --current-topic")
     p.add_argument("--current-topic", default="motor_current",
                    help="bag topic of the motor current (std_msgs/Float64 or Float32, A; "
-                   "log time as stamp), read with --torque-constant-nm-per-a")
+                   "its log time, put on the motion's clock through the nut states' log "
+                   "times), read with --torque-constant-nm-per-a")
     p.add_argument("--physical", action="store_true",
                    help="also try the model's own parameters (contact-angle deviation, friction "
                         "coefficient, preload) as candidates: ~18-24 model runs over the "
-                        "recording (issue 21; settings discrepancy.physical)")
+                        "recording (settings discrepancy.physical)")
     p.add_argument("--no-plots", action="store_true", help="write no PNG figures")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--json", action="store_true", help="print summary.json to stdout")
@@ -66,7 +67,7 @@ def run_discrepancy_command(args):
     from bb_friction_ros.bags import Topics
     from bb_friction_ros.discrepancy.data import InputProblem
     from bb_friction_ros.discrepancy.settings import load_settings
-    from bb_friction_ros.discrepancy.workflow import run_discrepancy
+    from bb_friction_ros.discrepancy.workflow import OutputInUse, run_discrepancy
     from bb_friction_ros.node_parameters import NodeParameters
     settings = load_settings(args.settings)
     if args.physical:
@@ -83,9 +84,13 @@ def run_discrepancy_command(args):
             progress=not args.no_progress, validate_path=args.validate,
             baseline=args.baseline, torque_constant_nm_per_a=args.torque_constant_nm_per_a,
             current_topic=args.current_topic)
-    except InputProblem as exc:
+    except (InputProblem, OutputInUse) as exc:
         print(f"bb-friction discrepancy: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:       # also from inside a model step (runner.interrupted)
+        print(f"bb-friction discrepancy: interrupted; the outputs in {args.out} are partial "
+              "(summary.json: \"complete\": false)", file=sys.stderr)
+        return 130
     if args.json:
         print(json.dumps(summary, indent=2))
     if status == 2:

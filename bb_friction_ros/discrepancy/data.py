@@ -35,7 +35,7 @@ from bb_friction_ros.empirical_terms import Inputs
 from bb_friction_ros.model_file import load_model_file
 from bb_friction_ros.node_parameters import NodeParameters
 from bb_friction_ros.replay import nothing_accepted_message, run_events
-from bb_friction_ros.runner import build_runner, InputAssembler
+from bb_friction_ros.runner import build_runner, InputAssembler, run_starts
 
 CSV_REQUIRED = ("t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n",
                 "torque_meas_nm")
@@ -95,13 +95,11 @@ class Recording:
 
 
 def run_times(stamps_s):
-    """Return stamp - first stamp of its run; a run restarts where the stamps go backwards."""
+    """Return stamp - first stamp of its run; runs start where the runner resets (run_starts)."""
     stamps = np.asarray(stamps_s, dtype=float)
     if stamps.size == 0:
         return stamps.copy()
-    start = np.zeros(stamps.size, dtype=bool)
-    start[0] = True
-    start[1:] = np.diff(stamps) < 0.0      # the runner resets on a backward stamp
+    start = run_starts(stamps)[0]
     first = stamps[np.maximum.accumulate(np.where(start, np.arange(stamps.size), 0))]
     return stamps - first
 
@@ -234,6 +232,8 @@ def load_bag(path, config_path, replay_settings=NodeParameters(), topics=Topics(
     with src:
         rec = _load_bag_input(src, path, config_path, replay_settings, topics, progress,
                               baseline, measured)
+        # rows of an unknown topic, messages not read: said in summary.json's warnings
+        rec.info["notes"] = rec.info.get("notes", []) + src.warnings(all_topics=False)
     if current is not None:
         rec.info["measured_torque_source"] = (f"topic {current[1]} (motor current) x "
                                               f"{current[0]:g} N m/A ({CURRENT_FLAG})")
@@ -251,8 +251,9 @@ def read_current_topic(path, topic, torque_constant_nm_per_a):
     """
     Return (stamps [s], torque [N m]) of a motor-current topic of a bag, scaled by K.
 
-    The topic's type must be one of ``CURRENT_TYPES`` (the current in ``data``, A); the log
-    time is its stamp.  A missing or empty topic is refused, naming it and the flag.
+    The topic's type must be one of ``CURRENT_TYPES`` (the current in ``data``, A); the
+    stamps are its log times (``current_on_header_clock`` puts them on the motion's clock).  A
+    missing or empty topic is refused, naming it and the flag.
     """
     from rosbags.highlevel import AnyReader
     name = "/" + topic.lstrip("/")
@@ -287,7 +288,15 @@ def read_current_topic(path, topic, torque_constant_nm_per_a):
 def _load_bag_input(src, path, config_path, replay_settings, topics, progress, baseline,
                     current=None):
     counts = src.counts                  # messages actually read, filled as the bag streams
-    events = (ev for _, _, _, ev in src.messages(all_topics=False))
+    clock = (array("d"), array("d"))     # the nut states' (log time, header stamp) [s]
+
+    def stream():
+        for _, log_ns, _, ev in src.messages(all_topics=False):
+            if ev is not None and ev.kind == "nut_state":
+                clock[0].append(log_ns * 1e-9)
+                clock[1].append(ev.stamp_s)
+            yield ev
+    events = stream()
 
     def no_measurement():
         return InputProblem(f"{path}: no measured torque: topic {topics.measured_torque!r} "
@@ -303,7 +312,7 @@ def _load_bag_input(src, path, config_path, replay_settings, topics, progress, b
         inputs = _split_measured(events, meas_t, meas_v)
     else:                             # the motor current x K, not the torque topic
         inputs = _split_measured(events, array("d"), array("d"))
-        meas_t, meas_v = current
+        meas_t, meas_v = None, current[1]
     if baseline == "zero":
         packed, rejected = zero_baseline_events(inputs, replay_settings)
         info = {"input": str(path), "format": "rosbag2", "baseline": "zero",
@@ -318,14 +327,58 @@ def _load_bag_input(src, path, config_path, replay_settings, topics, progress, b
                 "rejected": rejected, "nonconverged_steps": stats.nonconverged_steps,
                 "resets": stats.resets}
         base = load_model_file(config_path)[1].names
-    if not meas_t:
+    time_base = None
+    if current is not None:           # the current at its log time, on the stamps' clock
+        meas_t, time_base = current_on_header_clock(current[0], clock[0], clock[1], path)
+    if not len(meas_t):
         raise no_measurement()
     if not len(packed):   # the reasons, what the bag holds and the fix, as replay says them
         raise InputProblem(nothing_accepted_message(
             src, SimpleNamespace(rejected=Counter(rejected)), replay_settings))
     measured_events = (Event("measured_torque", t, value=v) for t, v in zip(meas_t, meas_v))
     meas = measured_torque_at(measured_events, packed.column("stamp_s"))   # as replay does
+    if time_base is not None:
+        info["current_time_base"] = time_base
     return _from_packed(packed, meas, info, base)
+
+
+# Nut states over which the offset between their log times and header stamps is smoothed (a
+# running median): the recorder's latency jitters message by message, the offset between the
+# two clocks (a device clock, the recorder's latency) changes slowly.
+CLOCK_OFFSET_WINDOW = 51
+
+
+def current_on_header_clock(current_log_s, state_log_s, state_stamp_s, path):
+    """
+    Return (the current's times on the nut states' header clock [s], a summary of the offset).
+
+    A motor current without a header has only its log time; the motion is placed at its header
+    stamps.  Both topics went through the same recorder, so the nut states' own (log time,
+    header stamp) pairs give the offset between the two clocks at each log time: the
+    current's log time plus that offset (smoothed, ``CLOCK_OFFSET_WINDOW``; held at the
+    ends) is its time on the header clock.  Without it a recorder latency of 10 ms moved the
+    current 10 ms against the motion and named the wrong effects.  Refused when the current's
+    log times do not overlap the nut states' at all, naming both spans.
+    """
+    from scipy.ndimage import median_filter
+    cur = np.asarray(current_log_s, dtype=float)
+    log = np.asarray(state_log_s, dtype=float)
+    stamp = np.asarray(state_stamp_s, dtype=float)
+    if not cur.size or not log.size:
+        return cur, None
+    if cur[-1] < log[0] or cur[0] > log[-1]:
+        raise InputProblem(
+            f"{path}: the motor current and the nut states do not overlap in log time (current "
+            f"{cur[0]:.6f}-{cur[-1]:.6f} s, nut_state {log[0]:.6f}-{log[-1]:.6f} s): they were "
+            "not recorded together")
+    offset = median_filter(stamp - log, size=min(CLOCK_OFFSET_WINDOW, log.size),
+                           mode="nearest")
+    mapped = cur + np.interp(cur, log, offset)
+    summary = {"method": "log time + the nut states' (header stamp - log time), running "
+                         f"median of {CLOCK_OFFSET_WINDOW}, interpolated",
+               "offset_median_s": float(np.median(offset)),
+               "offset_range_s": [float(offset.min()), float(offset.max())]}
+    return mapped, summary
 
 
 def _csv_header(path):
@@ -402,7 +455,7 @@ def check_time_order(path, t_s):
     file is refused, naming the first backward line, rather than analysed as thousands of
     tiny runs with a wrong verdict.
     """
-    back = np.flatnonzero(np.diff(t_s) < 0.0) + 1
+    back = np.flatnonzero(run_starts(t_s)[0][1:]) + 1     # restarts, not late rows
     starts = np.concatenate(([0], back, [t_s.size]))
     lengths = np.diff(starts)
     if back.size and lengths.min() < MIN_RUN_ROWS:
@@ -451,9 +504,13 @@ def check_reused_terms(path, cols, config_path):
     live = terms.live()
     t = cols["t_s"]
     t_run = run_times(t)
+    starts, late = run_starts(t)
     mine = np.empty(t.size)
     for i in range(t.size):
-        if i and t[i] < t[i - 1]:
+        if late[i]:         # the runner answers a late row with the last row's terms
+            mine[i] = mine[i - 1]
+            continue
+        if i and starts[i]:
             live.reset()
         mine[i] = live.torque_nm(t[i], t_run[i], cols["nut_angle_rad"][i],
                                  cols["nut_velocity_rad_s"][i], cols["axial_load_n"][i])
@@ -494,7 +551,15 @@ def load_csv(path, config_path, replay_settings=NodeParameters(), recompute=Fals
     runs = check_time_order(path, cols["t_s"])
     check_time_advances(path, cols["t_s"])
     accel = cols.get(CSV_ACCELERATION)
-    info = {"input": str(path), "format": "csv", "runs": runs,
+    header = _csv_header(path)
+    notes = []
+    if CSV_CURRENT in header and "torque_meas_nm" in header:
+        notes.append(f"{path} has both torque_meas_nm and {CSV_CURRENT}: "
+                     + (f"{CURRENT_FLAG} reads {CSV_CURRENT}; torque_meas_nm was ignored"
+                        if torque_constant_nm_per_a is not None else
+                        f"torque_meas_nm was used; {CSV_CURRENT} was ignored (it needs "
+                        f"{CURRENT_FLAG})"))
+    info = {"input": str(path), "format": "csv", "runs": runs, "notes": notes,
             "measured_torque_source": measured_from,
             "acceleration_source": f"csv column {CSV_ACCELERATION}" if accel is not None
             else "derived (zero-phase filter)"}

@@ -20,6 +20,8 @@ import math
 
 import numpy as np
 
+from bb_friction_ros.runner import run_starts
+
 # Median absolute deviation -> standard deviation for a normal distribution.
 MAD_TO_STD = 1.4826
 
@@ -50,8 +52,7 @@ def _same_state(velocity, stamps):
     count: that is still one operating state).
     """
     w = np.asarray(velocity, dtype=float)
-    run = np.cumsum(np.concatenate(([0], np.diff(stamps) < 0.0))) if stamps is not None \
-        else np.zeros(w.size)
+    run = np.cumsum(run_starts(stamps)[0]) if stamps is not None else np.zeros(w.size)
     dw = np.diff(w)
     jitter = 3.0 * MAD_TO_STD * float(np.median(np.abs(dw - np.median(dw)))) \
         if dw.size else 0.0

@@ -71,6 +71,43 @@ def _log_grid(lo, hi, n):
     return tuple(float(v) for v in np.geomspace(lo, hi, n))
 
 
+def reversal_rotation_rad(x):
+    """
+    Return the median nut rotation of the first sample after a reversal [rad], or None.
+
+    A reversal is a sample moving against the last direction the nut moved in (a start from
+    rest in the other direction too).  Its rotation since the sample before says how finely
+    the recording resolves what happens right after a reversal.
+    """
+    phi = np.asarray(x.nut_angle_rad, dtype=float)
+    s = np.sign(np.asarray(x.nut_velocity_rad_s, dtype=float))
+    idx = np.flatnonzero(s != 0.0)
+    if idx.size < 2:
+        return None
+    # the last nonzero direction before each sample
+    last = s[idx[np.maximum(np.searchsorted(idx, np.arange(s.size)) - 1, 0)]]
+    rev = np.flatnonzero((s != 0.0) & (last != 0.0) & (s != last))
+    rev = rev[rev > 0]
+    if not rev.size:
+        return None
+    return float(np.median(np.abs(phi[rev] - phi[rev - 1])))
+
+
+def pre_rolling_grid(x, settings):
+    """Return the travels to try for ``pre_rolling`` [rad], or a reason it cannot be seen."""
+    step = reversal_rotation_rad(x)
+    if step is None:
+        return "no reversal: pre-rolling shows only after the nut changes direction"
+    lo = max(settings.pre_rolling_min_travel_rad, settings.pre_rolling_min_samples * step)
+    hi = settings.pre_rolling_max_travel_rad
+    if not lo < hi:
+        return (f"the samples are too far apart at the reversals to see a pre-rolling "
+                f"travel: the first sample after a reversal turns {step:.3g} rad (median), "
+                f"{settings.pre_rolling_min_samples:g} of them exceed pre_rolling_max_travel_rad "
+                f"= {hi:g} rad")
+    return _log_grid(lo, hi, settings.nonlinear_grid_points)
+
+
 def candidates(x, settings, skip=(), fixed=None):
     """
     Return the candidates for fit inputs ``x``; names in ``skip`` are left out.
@@ -110,6 +147,10 @@ def candidates(x, settings, skip=(), fixed=None):
             hi = settings.stribeck_max_speed_fraction * float(np.percentile(moving, 90))
             out.append(Candidate(name, LIBRARY[name].linear,
                                  _log_grid(lo, hi, settings.nonlinear_grid_points)))
+        elif name == "pre_rolling":
+            grid = pre_rolling_grid(x, settings)
+            if isinstance(grid, tuple):
+                out.append(Candidate(name, LIBRARY[name].linear, grid))
         elif name == "thermal_drift":
             out.append(Candidate(name, LIBRARY[name].linear, _log_grid(
                 settings.thermal_min_tau_fraction * span,

@@ -16,6 +16,7 @@ import dataclasses
 import numpy as np
 
 from bb_friction_ros.discrepancy.data import Recording, run_times
+from bb_friction_ros.empirical_terms import dahl_state
 
 
 @dataclasses.dataclass(frozen=True)
@@ -26,6 +27,9 @@ class Drive:
     c_nm_s_per_rad: float = 4e-4
     coulomb_nm: float = 0.02
     noise_nm: float = 0.002
+    # > 0: the Coulomb friction pre-rolls over this nut rotation after a reversal (a Dahl
+    # element, T_c z instead of T_c sign(omega): empirical_terms.dahl_state) [rad]
+    pre_rolling_rad: float = 0.0
 
 
 def move_profile(rng, duration_s):
@@ -70,7 +74,9 @@ def servo_recording(rate_hz, duration_s=10.0, drive=Drive(), seed=0):
     times, alphas = move_profile(rng, duration_s)
     t = np.arange(0.0, duration_s, 1.0 / rate_hz)
     phi, w, a = sample_moves(times, alphas, t)
-    hidden = (drive.j_kg_m2 * a + drive.c_nm_s_per_rad * w + drive.coulomb_nm * np.sign(w))
+    coulomb = np.sign(w) if not drive.pre_rolling_rad > 0.0 else \
+        dahl_state(phi, t, drive.pre_rolling_rad, w)
+    hidden = (drive.j_kg_m2 * a + drive.c_nm_s_per_rad * w + drive.coulomb_nm * coulomb)
     noise = np.random.default_rng(seed + 1).normal(0.0, drive.noise_nm, t.size)
     n = t.size
     rec = Recording(t, run_times(t), phi, w, np.full(n, 1000.0), hidden + noise, np.zeros(n),

@@ -76,10 +76,18 @@ class DiscrepancySettings:
         "derivative is the acceleration (the inertia term); 0 chooses it from the data "
         "(blocked cross-validation, discrepancy/bandwidth.py), a positive value overrides "
         "the choice; the causal version lags by sqrt(2)/(2 pi fc), 22 ms at 10 Hz", lo=0.0)
+    accel_min_cutoff_hz: float = field(
+        0.1, "Hz", "lowest cut-off accel_cutoff_hz may set: below it the causal filter lags "
+        "by more than 2 s, longer than any acceleration phase of an axis (5e-324 Hz wrote "
+        "Infinity into summary.json)", lo=0.0, lo_open=True)
     accel_max_cutoff_fraction: float = field(
         0.2, "1", "the cut-off is at most this fraction of the sample rate (a slow recorder: "
         "the filter must stay well below Nyquist); the highest candidate of the choice",
         lo=0.01, hi=0.45)
+    accel_grid_min_share: float = field(
+        0.1, "1", "a file of runs at several rates: the grid tops at the safe cut-off of the "
+        "fastest rate that holds this share of the samples (a run of 40 rows among 3000 "
+        "does not set the cut-off of the whole file)", lo=0.0, hi=1.0)
     accel_cutoff_grid_points: int = field(
         8, "1", "candidate cut-offs of the cross-validated choice, log-spaced", lo=2, hi=50)
     accel_cutoff_grid_span: float = field(
@@ -105,6 +113,17 @@ class DiscrepancySettings:
     stribeck_max_speed_fraction: float = field(
         0.5, "1", "largest Stribeck velocity tried, as a fraction of the 90th percentile of "
         "|nut speed|: a larger one makes stribeck a copy of seal_drag", lo=0.01, hi=1.0)
+    pre_rolling_min_travel_rad: float = field(
+        1e-4, "rad", "shortest pre-rolling travel tried (nut rotation; 0.3 um of axial travel "
+        "at a 20 mm lead)", lo=0.0, lo_open=True)
+    pre_rolling_max_travel_rad: float = field(
+        0.05, "rad", "longest pre-rolling travel tried (160 um at a 20 mm lead, several times "
+        "the tens of um measured on ball screws): beyond it a build-up is a speed effect "
+        "(Stribeck, viscous), not pre-rolling", lo=0.0, lo_open=True)
+    pre_rolling_min_samples: float = field(
+        3.0, "samples", "a pre-rolling travel is tried only if it spans at least this many "
+        "samples after a reversal (the median first-sample rotation of the recording's "
+        "reversals): a recorder too slow to see it leaves the term untested", lo=1.0)
     thermal_min_tau_fraction: float = field(
         0.05, "1", "shortest thermal time constant tried, as a fraction of the fit span",
         lo=1e-3, hi=1.0)
@@ -131,6 +150,26 @@ class DiscrepancySettings:
     flag_min_bias_fraction: float = field(
         0.25, "1", "and when it exceeds this fraction of the noise std (relevance, not only "
         "significance)", lo=0.0)
+    # --- is the measurement plausible at all? (plausibility.py) -----------------------------
+    sign_error_z: float = field(
+        5.0, "1", "the measured torque's Coulomb part (least squares on 1 and sign(omega) over "
+        "the moving samples of both directions) below -sign_error_z standard errors is a sign "
+        "error: friction has the sign of the nut velocity (5: ~3e-7 false refusals under "
+        "white noise)", lo=1.0)
+    sign_error_fraction: float = field(
+        0.9, "1", "a recording moving in one direction only: this share of moving samples "
+        "with a measured torque against the velocity's sign is a sign error", lo=0.5, hi=1.0)
+    min_torque_constant_nm_per_a: float = field(
+        1e-4, "N m/A", "smallest torque constant accepted (--torque-constant-nm-per-a): a "
+        "6 mm micro motor has ~1.5e-3 N m/A", lo=0.0, lo_open=True)
+    max_torque_constant_nm_per_a: float = field(
+        1e4, "N m/A", "largest torque constant accepted: direct-drive torque motors reach a "
+        "few hundred N m/A", lo=0.0, lo_open=True)
+    max_measured_scale_ratio: float = field(
+        100.0, "1", "a measured torque whose RMS on moving samples is more than this factor "
+        "above or below the model's prediction is refused as a unit or torque-constant error "
+        "(the model's friction is off by tens of percent, not by orders of magnitude)",
+        lo=1.0)
     # --- the model's own parameters as candidates (issue 21; physical.py) -------------------
     physical: PhysicalSettings = dataclasses.field(default_factory=PhysicalSettings)
 

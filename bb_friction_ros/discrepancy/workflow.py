@@ -31,27 +31,33 @@ import math
 import numpy as np
 
 from bb_friction_ros.config import BBFrictionError
-from bb_friction_ros.discrepancy import physical, regimes
+from bb_friction_ros.discrepancy import physical, plausibility, regimes
 from bb_friction_ros.discrepancy.bandwidth import (acceleration_filter_of, choose_cutoff,
                                                    with_acceleration)
 from bb_friction_ros.discrepancy.data import inputs_of
 from bb_friction_ros.discrepancy.reference import RigidBody
-from bb_friction_ros.discrepancy.selection import (ambiguities, candidates, refit_all,
+from bb_friction_ros.discrepancy.selection import (ambiguities, candidates,
+                                                   pre_rolling_grid, refit_all,
                                                    RIGID_BODY_TERMS, select, to_termset)
 from bb_friction_ros.empirical_terms import filter_lag_s, TermSet
 from bb_friction_ros.model_file import physics_of, read_model_file, write_model_file
+from bb_friction_ros.runner import FrictionSignError, load_checked_model
 
 
-# Relative difference above which the workflow's error counts as worse than the rigid-body
-# reference's.  Where the workflow chose exactly the reference's terms (driveNo2) the two are
-# the same least squares solved two ways and differ by rounding (3e-17 of 0.135); a real
-# difference is many orders above this.
+# Two least-squares fits of the same terms solved two ways differ by rounding only (3e-17 of
+# 0.135 where the workflow chose exactly the reference's terms, driveNo2).
 SAME_FIT_RTOL = 1e-9
+# Relative difference above which the workflow's error is reported worse than the rigid-body
+# reference's.  Where the workflow found exactly the hidden effects, the reference, fitted
+# with more free parameters, still beat it on a validation recording by the noise (0.0175734
+# against 0.0175737, 1.7e-5 apart).  A workflow that misses an effect is worse by percents
+# (a missed inertia term: 20 % and more), so differences below 0.5 % are one fit to a user.
+WORSE_THAN_REFERENCE_RTOL = 5e-3
 
 
 def worse_than_reference(workflow, reference):
-    """Tell whether the workflow's relative error is above the reference's (beyond rounding)."""
-    return reference is not None and workflow > reference * (1.0 + SAME_FIT_RTOL)
+    """Tell whether the workflow's relative error is above the reference's (beyond noise)."""
+    return reference is not None and workflow > reference * (1.0 + WORSE_THAN_REFERENCE_RTOL)
 
 
 class InsufficientData(BBFrictionError):
@@ -247,9 +253,13 @@ def analyse(rec, settings, physics=None):
     x_fit = inputs_of(rec, fit_part)
     missing, untested = adequacy(x_fit, n, settings)
     if missing:
-        raise InsufficientData(missing)
+        raise InsufficientData(nonconvergence_first(missing, dropped, rec_in))
     if choice is not None and not choice.inertia_identifiable:
         untested.setdefault("inertia", choice.reason)
+    if "pre_rolling" not in untested:
+        grid = pre_rolling_grid(x_fit, settings)
+        if isinstance(grid, str):
+            untested["pre_rolling"] = grid
     if "stribeck" not in untested:
         grid = [c for c in candidates(x_fit, settings) if c.name == "stribeck"][0].grid
         if not grid[-1] > grid[0]:
@@ -270,6 +280,7 @@ def analyse(rec, settings, physics=None):
         terms, trace, ctx, search = physical.select(physics, rec_in, ok, fit_mask, r, x_fit,
                                                     settings, tuple(untested), fixed,
                                                     noise.tau)
+        physical.use_replay_change(search, rec_in, ok)      # what replay will do with it
     shift = physical.shift_nm(search, n)      # the chosen physical change (issue 21), or 0
     ambiguous = ambiguities(ctx, x_fit, (r - shift)[fit_part], settings) if len(terms) else []
     ambiguous += search.identifiability if search is not None else []   # chosen, or a twin
@@ -303,6 +314,23 @@ def analyse(rec, settings, physics=None):
         regimes.regime_table(bins, x_hold, after[hold], noise.std_nm, settings, tau),
         _rms(r[hold]), _rms(after[hold]), dropped, noise, spec, ambiguous, rejected,
         terms, refit, choice, reference, heldout, search)
+
+
+def nonconvergence_first(missing, dropped, rec):
+    """
+    Put the samples the model could not solve first among what the recording is missing.
+
+    A model that does not converge on part of the recording (theta 9.5 deg: 2417 steps)
+    leaves a recording that may look like one direction only; the cause to fix is the model
+    or its config, not the recording.
+    """
+    lost = dropped.get("model_not_converged", 0)
+    if not lost:
+        return missing
+    config = rec.info.get("config", "the --config")
+    return [f"{lost} of {len(rec)} samples were dropped because the model did not converge "
+            f"on them (config {config}): what follows is what the rest can tell; check the "
+            "model config (or --baseline zero: no model of this screw)"] + missing
 
 
 def refit_terms(ctx, terms, x, r):
@@ -487,9 +515,15 @@ def write_augmented(path, config_path, terms, zero_baseline=False, physical_sear
                 "# of this screw); they are the whole torque.  physics: none makes replay and\n"
                 "# the node predict with the terms alone; the ball_screw part is only the base\n"
                 "# config the runner needs.\n")
-    return write_model_file(path, base, TermSet(existing.terms + terms.terms),
-                            AUGMENTED_HEADER + note + f"# base config: {config_path}\n",
-                            physics=None if physics == "ball_screw" else physics)
+    write_model_file(path, base, TermSet(existing.terms + terms.terms),
+                     AUGMENTED_HEADER + note + f"# base config: {config_path}\n",
+                     physics=None if physics == "ball_screw" else physics)
+    try:    # never leave a model behind that the runner would refuse, or that pushes along
+        load_checked_model(path)
+    except FrictionSignError:
+        path.unlink()
+        raise
+    return path
 
 
 @dataclasses.dataclass
@@ -598,11 +632,9 @@ def run_discrepancy(input_path, out, config=None, settings=None, replay_settings
     column ``motor_current_a``, bag topic ``current_topic``), for both recordings.
     """
     from pathlib import Path
-    import json
     from bb_friction_ros.bags import Topics
     from bb_friction_ros.config import bundled_config
     from bb_friction_ros.discrepancy.data import load_recording
-    from bb_friction_ros.discrepancy.report import write_report, write_insufficient_report
     from bb_friction_ros.discrepancy.settings import DiscrepancySettings
     from bb_friction_ros.node_parameters import NodeParameters
     settings = settings or DiscrepancySettings()
@@ -610,23 +642,60 @@ def run_discrepancy(input_path, out, config=None, settings=None, replay_settings
     load = dict(replay_settings=replay_settings or NodeParameters(), topics=topics or Topics(),
                 recompute=recompute, progress=progress, baseline=baseline,
                 torque_constant_nm_per_a=torque_constant_nm_per_a, current_topic=current_topic)
+    plausibility.check_torque_constant(torque_constant_nm_per_a, settings)
     rec = load_recording(input_path, config, **load)
     rec2 = load_recording(validate_path, config, **load) if validate_path else None
+    for path, r in ((input_path, rec), (validate_path, rec2)):
+        if r is not None:
+            r.info["config"] = str(config)
+            plausibility.check_measured_sign(r, settings, path)
+            plausibility.check_measured_scale(r, settings, path)
     check_same_baseline(rec, rec2)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    with _only_run_in(out):
+        remove_earlier_outputs(out)
+        try:
+            return _analyse_into(out, rec, rec2, config, settings, load, plots)
+        except BaseException as exc:        # Ctrl-C, a full disk: mark the outputs partial
+            try:
+                _write_summary(out, {"complete": False, "error": "interrupted" if isinstance(
+                    exc, KeyboardInterrupt) else f"{type(exc).__name__}: {exc}"})
+            except OSError:                 # the disk that is full: the error says it
+                pass
+            raise
+
+
+def _physical_ignored(settings, rec, config):
+    """Return why ``--physical`` cannot apply to this run, or None (it applies, or was off)."""
+    if not settings.physical.enabled:
+        return None
+    if rec.info.get("baseline") == "zero":
+        return ("--physical was ignored: with no model of this screw (--baseline zero, or a "
+                "torque_pred_nm of 0) there are no model parameters to try")
+    if physics_of(config) != "ball_screw":
+        return (f"--physical was ignored: {config} says physics: none, so there are no model "
+                "parameters to try")
+    return None
+
+
+def _analyse_into(out, rec, rec2, config, settings, load, plots):
+    """Analyse ``rec`` (and validate on ``rec2``) and write every output into ``out``."""
+    import json
+    from bb_friction_ros.discrepancy.report import write_report, write_insufficient_report
+    ignored = _physical_ignored(settings, rec, config)
     try:
-        physics = None          # the model's own parameters as candidates (issue 21)
-        if settings.physical.enabled and rec.info.get("baseline") != "zero" \
-                and physics_of(config) == "ball_screw":
+        physics = None          # the model's own parameters as candidates
+        if settings.physical.enabled and ignored is None:
             physics = physical.PhysicsContext(config, physical.runner_args(
-                load["replay_settings"]), settings.physical)
+                load["replay_settings"]), settings.physical,
+                load["replay_settings"].schedule())
         a = analyse(rec, settings, physics)
         v = validate(a, rec2, settings) if rec2 is not None else None
     except InsufficientData as exc:
         summary = insufficient_summary(exc, rec.info)
-        (out / "summary.json").write_text(json.dumps(summary, indent=2))
         write_insufficient_report(out, summary)
+        _write_summary(out, summary)
         return 2, summary
     augmented = write_augmented(out / "augmented.yaml", config, a.terms,
                                 zero_baseline=rec.info.get("baseline") == "zero",
@@ -634,6 +703,7 @@ def run_discrepancy(input_path, out, config=None, settings=None, replay_settings
     summary = summary_of(a, rec.info)
     summary["augmented_config"] = str(augmented)
     summary["base_config"] = str(config)
+    summary["warnings"] += rec.info.get("notes", []) + ([ignored] if ignored else [])
     if v is not None:
         write_validation_csv(out / "validation" / "prediction.csv", v)
         summary["validation"] = v.summary
@@ -644,6 +714,68 @@ def run_discrepancy(input_path, out, config=None, settings=None, replay_settings
                 f"reference: relative error {v.summary['relative_error_after']:.4g} against "
                 f"{v.summary['reference_relative_error']:.4g}"))
     summary["settings"] = dataclasses.asdict(settings)
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    json.dumps(summary, allow_nan=False)     # a figure that is not JSON fails before writing
     write_report(out, a, summary, plots=plots, validation=v)
+    _write_summary(out, summary)            # last: its "complete" vouches for the rest
     return 0, summary
+
+
+# What a run writes into its --out (and nothing else there is ever removed).
+def _outputs():
+    from bb_friction_ros.discrepancy.report import FIGURES, VALIDATION_FIGURE
+    return (SUMMARY_FILE, AUGMENTED_FILE, REPORT_FILE) + FIGURES \
+        + (VALIDATION_FIGURE, physical.B2B_FIGURE)
+
+
+SUMMARY_FILE, AUGMENTED_FILE, REPORT_FILE = "summary.json", "augmented.yaml", "report.md"
+VALIDATION_DIR = "validation"
+
+
+def remove_earlier_outputs(out):
+    """
+    Remove what an earlier run wrote into ``out``, before this one writes anything.
+
+    An earlier ``augmented.yaml``, ``validation/`` or plot beside a new summary whose verdict
+    is none was taken for this run's.  Only this command's own file names are removed.
+    """
+    import shutil
+    for name in _outputs():
+        (out / name).unlink(missing_ok=True)
+    shutil.rmtree(out / VALIDATION_DIR, ignore_errors=True)
+
+
+def _write_summary(out, summary):
+    """Write ``summary.json`` with ``complete`` (True unless the summary says otherwise)."""
+    import json
+    summary.setdefault("complete", True)
+    (out / SUMMARY_FILE).write_text(json.dumps(summary, indent=2, allow_nan=False))
+
+
+class OutputInUse(BBFrictionError):
+    """Another run writes into the same output directory."""
+
+
+def _only_run_in(out):
+    """
+    Return a context that holds an exclusive lock on the directory ``out`` for one run.
+
+    Two runs into one --out mixed their files; the second is refused while the first runs.
+    The lock is the directory's own (flock on its descriptor): nothing is left behind.
+    """
+    import contextlib
+    import fcntl
+    import os
+
+    @contextlib.contextmanager
+    def held():
+        fd = os.open(out, os.O_RDONLY)
+        try:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                raise OutputInUse(f"{out}: another bb-friction discrepancy is writing into it; "
+                                  "wait for it, or choose another --out") from None
+            yield
+        finally:
+            os.close(fd)
+    return held()

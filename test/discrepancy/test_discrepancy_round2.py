@@ -24,7 +24,8 @@ from bb_friction_ros.discrepancy.selection import Candidate
 from bb_friction_ros.discrepancy.servo_moves import Drive, servo_recording
 from bb_friction_ros.discrepancy.settings import DiscrepancySettings
 from bb_friction_ros.discrepancy.synthetic import draw_effect, synthesize
-from bb_friction_ros.discrepancy.workflow import analyse, summary_of, usable
+from bb_friction_ros.discrepancy.workflow import (analyse, summary_of, usable,
+                                                  worse_than_reference)
 from bb_friction_ros.empirical_terms import filter_lag_s, make_term, TermSet
 from bb_friction_ros.replay import replay
 
@@ -360,8 +361,9 @@ def test_rigid_body_reference_on_the_held_out_part_and_the_validation(pair, tmp_
         np.linalg.norm(ve) / np.linalg.norm(vrec.torque_meas_nm), rel=1e-9)
     report = (tmp_path / "o" / "report.md").read_text()
     assert "rigid-body reference" in report
-    assert (v["relative_error_after"] > v["reference_relative_error"]) == \
-        report.startswith("# Discrepancy report\n\n**Warning:**")
+    # worse beyond the noise only: the exact terms found here tie with the reference
+    assert worse_than_reference(v["relative_error_after"], v["reference_relative_error"]) \
+        == report.startswith("# Discrepancy report\n\n**Warning:**")
 
 
 def test_worse_than_the_reference_is_said_first(pair, tmp_path):
