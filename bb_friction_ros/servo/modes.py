@@ -25,6 +25,8 @@ feedforward opposes the plant's actual motion is counted beside it (``against_mo
 a commanded feedforward may lead a reversal by design).
 """
 
+import math
+
 from bb_friction_ros.servo.baselines import LuGreState
 from bb_friction_ros.runner import InputSample, ModelRunner
 
@@ -120,18 +122,32 @@ class ModelMode(Mode):
 
 
 class TruthMode(Mode):
-    """The plant's friction law, answered at the measured state (0 at standstill)."""
+    """
+    The plant's friction, answered at the measured state (0 at standstill).
 
-    def __init__(self, name, law):
-        """Wrap a friction law of the plant's kind (its own instance: its own ball state)."""
+    Its law (its own instance: its own ball state) and, for a plant with pre-sliding, its
+    Dahl state stepped along the measured angle as the plant steps its own (``plant``).
+    """
+
+    def __init__(self, name, law, presliding_rad=0.0):
+        """Wrap a friction law of the plant's kind and the plant's pre-sliding travel."""
         super().__init__(name)
         self.law = law
+        self.phi_d = presliding_rad
+        self.s = 0.0
+        self.last = None
 
     def raw(self, t_s, angle_rad, velocity_rad_s, load_n):
-        """Return the law's torque while moving, 0 at rest."""
+        """Return the law's torque while moving (times the Dahl state), 0 at rest."""
+        if self.phi_d > 0.0 and self.last is not None and angle_rad != self.last:
+            d = angle_rad - self.last
+            target = math.copysign(1.0, d)
+            self.s = target - (target - self.s) * math.exp(-abs(d) / self.phi_d)
+        self.last = angle_rad
         if velocity_rad_s == 0.0:
             return 0.0
-        return self.law.torque(t_s, angle_rad, velocity_rad_s, load_n)
+        torque = self.law.torque(t_s, angle_rad, velocity_rad_s, load_n)
+        return self.s * abs(torque) if self.phi_d > 0.0 else torque
 
 
 def model_runner(path, settings):

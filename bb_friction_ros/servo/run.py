@@ -128,7 +128,8 @@ class Setup:
             return modes_mod.ModelMode(name, runner)
         if name == "truth":
             return modes_mod.TruthMode(name, self.prepare_law(self.plant_law(axis_index),
-                                                              angle0, load0))
+                                                              angle0, load0),
+                                       self.settings.plant.presliding_rad)
         raise ConfigError(f"--modes: unknown mode {name!r} (known: "
                           f"{', '.join(modes_mod.ALL_MODES)})")
 
