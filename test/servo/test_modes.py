@@ -103,3 +103,16 @@ def test_reversal_moves_reach_their_speed_and_stroke():
     assert np.max(w) == pytest.approx(2 * math.pi * 2.0, rel=1e-3)
     assert np.max(phi) - np.min(phi) == pytest.approx(2 * math.pi * 2.0, rel=1e-6)
     assert len(metrics.reversal_indices(w)) == 3     # forward-back, twice
+
+
+def test_truth_of_a_presliding_plant_builds_up_after_a_reversal():
+    """The truth carries the plant's Dahl state: after a reversal it is gated, then builds."""
+    from bb_friction_ros.servo.modes import TruthMode
+    from bb_friction_ros.servo.plant import RigidBodyFriction
+    truth = TruthMode("truth", RigidBodyFriction(0.0, 0.2, 0.0), presliding_rad=1e-3)
+    for k in range(20):                       # forward: s -> 1
+        truth.value(0, k * 1e-3, 1.0, 0, 1.0, 0, 1.0)
+    back = [truth.value(0, 19e-3 - k * 1e-4, -1.0, 0, -1.0, 0, -1.0) for k in range(1, 80)]
+    assert back[0] == 0.0 and truth.wrong_sign > 0      # the old sign is never fed forward
+    assert back[-1] == pytest.approx(-0.2, rel=1e-3)     # 7.9 travels later: fully built
+    assert all(b >= a for a, b in zip(back[5:], back[4:-1]))   # monotonic build-up
