@@ -15,6 +15,7 @@ setup(
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/config', sorted(glob('config/*.yaml'))),
         ('share/' + package_name + '/config/sweeps', sorted(glob('config/sweeps/*.yaml'))),
+        ('share/' + package_name + '/config/servo', sorted(glob('config/servo/*.yaml'))),
     ],
     install_requires=['setuptools'],
     zip_safe=True,

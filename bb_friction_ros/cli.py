@@ -15,6 +15,7 @@ import sys
 from bb_friction_ros import __version__
 from bb_friction_ros.ball_screw import cli as screw_cli
 from bb_friction_ros.discrepancy import cli as discrepancy_cli
+from bb_friction_ros.servo import cli as servo_cli
 from bb_friction_ros.sweep import cli as sweep_cli
 from bb_friction_ros.config import BBFrictionError, ConfigError, load_linear_bearing
 
@@ -343,6 +344,7 @@ def build_parser():
     screw_cli.add_screw_pair_parser(sub)
     screw_cli.add_screw_sim_parser(sub)
     discrepancy_cli.add_discrepancy_parser(sub)
+    servo_cli.add_servo_parser(sub)
     sweep_cli.add_sweep_parsers(sub)
     return parser
 

@@ -21,7 +21,7 @@ LAYERS = {
     3: {"runner", "live", "bags", "interface", "node_parameters", "feedforward"},
     4: {"replay", "node", "ros_inputs", "node_entry", "harness", "pytest_plugin", "testing",
         "trajectories", "planned"},
-    5: {"discrepancy", "sweep", "demo", "reproduce"},
+    5: {"discrepancy", "sweep", "demo", "reproduce", "servo"},
     6: {"cli"},
 }
 # Below this layer nothing may import ROS: the physics core and the runner run without it.

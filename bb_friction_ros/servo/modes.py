@@ -1,0 +1,164 @@
+"""
+The friction feedforwards under test, one object per mode, and the safety gate around them.
+
+Timing: a ``measured`` mode answers the measured state (the encoder's angle, the loop's
+velocity estimate), as the node does; a ``commanded`` mode answers the reference (its
+angle and velocity), as a planner-side feedforward would.
+
+=============================  ===============================================================
+mode                           feedforward
+=============================  ===============================================================
+none                           0
+coulomb_viscous[_commanded]    c omega + T_c sign(omega), fitted (baselines.CoulombViscous)
+lugre[_commanded]              LuGre fitted on the same data (baselines.LuGre)
+model[_commanded]              the product's model, as the node answers (its safe
+                               ``feedforward_nm``: 0 at standstill and against the state)
+truth                          the plant's own friction at the measured state: the floor of a
+                               measured-state feedforward
+node                           the real friction_node over DDS (servo.node_mode)
+=============================  ===============================================================
+
+Safety gate (every mode): a feedforward whose sign is not its own motion's direction (the
+velocity it answered), or that is not 0 at its own standstill, would push the axis against
+its motion or move it from rest: it is set to 0 and counted (``wrong_sign``).  How often a
+feedforward opposes the plant's actual motion is counted beside it (``against_motion``:
+a commanded feedforward may lead a reversal by design).
+"""
+
+import math
+
+from bb_friction_ros.servo.baselines import LuGreState
+from bb_friction_ros.runner import InputSample, ModelRunner
+
+MEASURED = "measured"
+COMMANDED = "commanded"
+BASE_MODES = ("none", "coulomb_viscous", "coulomb_viscous_commanded", "lugre",
+              "lugre_commanded", "model", "model_commanded", "truth")
+ALL_MODES = BASE_MODES + ("node",)
+
+
+def timing_of(name):
+    """Return the timing of a mode name."""
+    return COMMANDED if name.endswith("_commanded") else MEASURED
+
+
+class Mode:
+    """A feedforward: ``value(t, measured angle, velocity, reference angle, velocity, load)``."""
+
+    name = "none"
+
+    def __init__(self, name):
+        """Name the mode; its timing follows from the name."""
+        self.name = name
+        self.timing = timing_of(name)
+        self.wrong_sign = 0
+        self.against_motion = 0
+
+    def raw(self, t_s, angle_rad, velocity_rad_s, load_n):
+        """Return the feedforward at the state of its timing [N m] (0: none)."""
+        return 0.0
+
+    def value(self, t_s, meas_angle, meas_velocity, ref_angle, ref_velocity, load_n,
+              plant_velocity):
+        """Return the gated feedforward [N m] (module docstring)."""
+        if self.timing == COMMANDED:
+            angle, w = ref_angle, ref_velocity
+        else:
+            angle, w = meas_angle, meas_velocity
+        ff = self.raw(t_s, angle, w, load_n)
+        if ff != 0.0 and (w == 0.0 or (ff > 0.0) != (w > 0.0)):
+            self.wrong_sign += 1
+            ff = 0.0
+        if ff != 0.0 and plant_velocity != 0.0 and (ff > 0.0) != (plant_velocity > 0.0):
+            self.against_motion += 1
+        return ff
+
+    def close(self):
+        """Release what the mode holds (the node mode's ROS context)."""
+
+
+class CoulombViscousMode(Mode):
+    """c omega + T_c sign(omega) of the fitted baseline."""
+
+    def __init__(self, name, fit):
+        """Wrap a CoulombViscous fit."""
+        super().__init__(name)
+        self.fit = fit
+
+    def raw(self, t_s, angle_rad, velocity_rad_s, load_n):
+        """Return the fit's torque at the velocity."""
+        return self.fit.torque(velocity_rad_s)
+
+
+class LuGreMode(Mode):
+    """The fitted LuGre model, its bristles stepped along the angle of its timing."""
+
+    def __init__(self, name, fit):
+        """Wrap a LuGre fit."""
+        super().__init__(name)
+        self.state = LuGreState(fit)
+
+    def raw(self, t_s, angle_rad, velocity_rad_s, load_n):
+        """Return LuGre's torque after moving its state to the angle."""
+        return self.state.torque(angle_rad, velocity_rad_s)
+
+
+class ModelMode(Mode):
+    """The product's model run as the node runs it; its safe ``feedforward_nm``."""
+
+    def __init__(self, name, runner):
+        """Wrap a ModelRunner (node schedule; terms without inertia)."""
+        super().__init__(name)
+        self.runner = runner
+        self.errors = 0
+
+    def raw(self, t_s, angle_rad, velocity_rad_s, load_n):
+        """Return the runner's feedforward_nm for the sample."""
+        p = self.runner.process(InputSample(t_s, angle_rad, velocity_rad_s, load_n))
+        if p is None:
+            self.errors += 1
+            return 0.0
+        return p.feedforward_nm
+
+
+class TruthMode(Mode):
+    """
+    The plant's friction, answered at the measured state (0 at standstill).
+
+    Its law (its own instance: its own ball state) and, for a plant with pre-sliding, its
+    Dahl state stepped along the measured angle as the plant steps its own (``plant``).
+    """
+
+    def __init__(self, name, law, presliding_rad=0.0):
+        """Wrap a friction law of the plant's kind and the plant's pre-sliding travel."""
+        super().__init__(name)
+        self.law = law
+        self.phi_d = presliding_rad
+        self.s = 0.0
+        self.last = None
+
+    def raw(self, t_s, angle_rad, velocity_rad_s, load_n):
+        """Return the law's torque while moving (times the Dahl state), 0 at rest."""
+        if self.phi_d > 0.0 and self.last is not None and angle_rad != self.last:
+            d = angle_rad - self.last
+            target = math.copysign(1.0, d)
+            self.s = target - (target - self.s) * math.exp(-abs(d) / self.phi_d)
+        self.last = angle_rad
+        if velocity_rad_s == 0.0:
+            return 0.0
+        torque = self.law.torque(t_s, angle_rad, velocity_rad_s, load_n)
+        return self.s * abs(torque) if self.phi_d > 0.0 else torque
+
+
+def model_runner(path, settings):
+    """Return the node-like ModelRunner of a model file for the ``model`` modes."""
+    from bb_friction_ros.ball_screw.whole_screw import WholeScrew
+    from bb_friction_ros.model_file import load_model_file, NoPhysics, physics_of
+    from bb_friction_ros.servo.plant import friction_terms
+    cfg, terms = load_model_file(path)
+    terms = friction_terms(terms)
+    screw = NoPhysics() if physics_of(path) == "none" else WholeScrew(cfg)
+    runner = ModelRunner(screw, settings.model_rate_hz, terms if len(terms) else None,
+                         settings.model_step_deg, max(settings.model_step_deg, 14.4))
+    runner.warm_up(cfg.operation.axial_load_n, cfg.operation.nut_velocity_rad_s)
+    return runner
