@@ -28,6 +28,7 @@ a commanded feedforward may lead a reversal by design).
 import math
 
 from bb_friction_ros.servo.baselines import LuGreState
+from bb_friction_ros.node_parameters import B2B_AVERAGED
 from bb_friction_ros.runner import InputSample, ModelRunner
 
 MEASURED = "measured"
@@ -158,7 +159,12 @@ def model_runner(path, settings):
     cfg, terms = load_model_file(path)
     terms = friction_terms(terms)
     screw = NoPhysics() if physics_of(path) == "none" else WholeScrew(cfg)
+    mean = None
+    if settings.b2b_feedforward == B2B_AVERAGED and not isinstance(screw, NoPhysics):
+        from bb_friction_ros.ball_screw.arrangement import mean_b2b
+        mean = mean_b2b(cfg)
     runner = ModelRunner(screw, settings.model_rate_hz, terms if len(terms) else None,
-                         settings.model_step_deg, max(settings.model_step_deg, 14.4))
+                         settings.model_step_deg, max(settings.model_step_deg, 14.4),
+                         mean_b2b=mean)
     runner.warm_up(cfg.operation.axial_load_n, cfg.operation.nut_velocity_rad_s)
     return runner

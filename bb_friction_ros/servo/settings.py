@@ -26,6 +26,7 @@ import math
 from typing import Optional
 
 from bb_friction_ros.config import ConfigError, field, from_mapping, load_yaml
+from bb_friction_ros.node_parameters import B2B_AVERAGED, B2B_FEEDFORWARDS
 
 LOOP = "loop"
 PLANT = "plant"
@@ -122,12 +123,18 @@ class ModelSettings:
     model_rate_hz: float = field(100.0, "Hz", "the node's model_rate_hz", lo=1.0, hi=1e6)
     model_step_deg: float = field(1.8, "deg", "the node's model_step_deg", lo=1e-4, hi=90.0)
     ball_state: str = dataclasses.field(default="fresh")
+    # the node's b2b_feedforward: the B2B torque averaged over arrangements (its default), or
+    # the model state's own
+    b2b_feedforward: str = dataclasses.field(default=B2B_AVERAGED)
 
     def check(self, path):
-        """Refuse an unknown ball_state, naming the key."""
+        """Refuse an unknown ball_state or b2b_feedforward, naming the key."""
         if self.ball_state not in BALL_STATES:
             raise ConfigError(f"{path}.ball_state: must be one of {', '.join(BALL_STATES)}, "
                               f"got {self.ball_state!r}")
+        if self.b2b_feedforward not in B2B_FEEDFORWARDS:
+            raise ConfigError(f"{path}.b2b_feedforward: must be one of "
+                              f"{', '.join(B2B_FEEDFORWARDS)}, got {self.b2b_feedforward!r}")
 
 
 @dataclasses.dataclass(frozen=True)
