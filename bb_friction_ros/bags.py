@@ -111,15 +111,15 @@ def with_measurement(events, measured_nm):
 # If the stream carries on below for longer, or goes back by more, it restarted (a looping
 # bag, a restarted source) and a new run begins; unless the newest stamp had jumped ahead
 # by more than the tolerance and the stream carries on past its stamp before that jump: that
-# one stamp was far ahead (a driver's glitch, issue 23 #20) and the run goes on.  Late samples
-# seen in practice are one sample a few ms late (10.5 ms in issue 23 #6); a restart goes on
-# below its old newest stamp for the length of a recording.
+# one stamp was far ahead (a driver's glitch) and the run goes on.  Late samples seen in
+# practice are one sample a few ms late (10.5 ms in a measured recording); a restart goes
+# on below its old newest stamp for the length of a recording.
 LATE_STAMP_TOLERANCE_S = 0.1
 LATE_SAMPLES_MAX = 3
 # Most predictions held waiting for their measurement, and most measured samples held for
 # predictions not yet seen, while streaming (replay): about 20 s at 1 kHz, ~20 MB of rows.
 # Beyond it the oldest is released unmatched (NaN), counted, and warned about: a stream that
-# never catches up cannot grow memory without bound (issue 23 #6: 497 MB on 4 minutes).
+# never catches up cannot grow memory without bound (it reached 497 MB on 4 minutes).
 MAX_HELD = 20000
 
 
@@ -257,8 +257,8 @@ class MeasuredAligner:
     the measured samples that bracket the stamp, NaN outside the run's measured span.  A
     late sample (a stamp a little behind, after which the stream carries on past its newest,
     see ``LATE_STAMP_TOLERANCE_S``) is aligned by its stamp in the same run: one late
-    ``nut_state`` stamp no longer cuts the prediction stream alone (issue 23 #6, where it
-    left 4500 of 6000 rows without their measurement).
+    ``nut_state`` stamp no longer cuts the prediction stream alone (it used to leave
+    4500 of 6000 rows of a recording without their measurement).
 
     Feed both streams in any interleaving; ``add_*`` and ``finish`` return the
     ``(payload, measured_nm)`` pairs that became known, in prediction order.  Only the lag
@@ -437,7 +437,7 @@ def measured_torque_at(events, stamps_s):
     if aligner.samples == 0:
         return None
     # each prediction gets exactly one (index, value), filled in as the aligner releases it:
-    # a list of 600,000 (index, value) tuples first peaked ~85 MB above the array (issue 19)
+    # a list of 600,000 (index, value) tuples first peaked ~85 MB above the array
     stamps = np.asarray(stamps_s, dtype=float)
     values = np.full(stamps.size, np.nan)
     for k, t in enumerate(stamps):
@@ -793,7 +793,7 @@ class BagInput:
 
 # --- the input messages decoded without rosbags' message objects ---------------------------
 # rosbags' generic decoder builds a message object per message (header, time, arrays): about
-# a third of replay's reading time on the demo bag (profiled, issue 11).  The two input types
+# a third of replay's reading time on the demo bag (profiled).  The two input types
 # are decoded here with struct, for little-endian CDR, the encoding every ROS 2 bag on x86
 # and ARM holds.  Anything else, and anything these checks do not accept (the same checks as
 # rosbags': string bounds and terminators, sequences inside the message, no trailing bytes
@@ -903,7 +903,7 @@ _FAST_DECODERS = {"nut_state": fast_joint_state, "axial_load": fast_wrench_force
 # --- a block of messages decoded at once ---------------------------------------------------
 # Per message, even the struct decoders above cost ~10 us with the Event they build: 0.13 s
 # of CPU for the 12 600 input messages of a 6-second bag at 1 kHz, a third of replay's work
-# outside the model (issue 20).  Messages of one topic and one length usually share one
+# outside the model.  Messages of one topic and one length usually share one
 # layout (the same frame_id, joint names and sequence sizes): the first is checked by the
 # decoder above, and every other whose bytes equal it everywhere but the stamp and the
 # numbers is read with numpy.  Anything else is decoded one by one when the caller reaches
@@ -1115,7 +1115,7 @@ WRITE_BATCH = 4096
 # An MCAP message record's opcode and fixed fields: opcode, record length, channel id,
 # sequence, log time, publish time (then the payload).  rosbags' McapWriter.write spends
 # ~15 us per message on a BytesIO, five small writes and the chunk's bookkeeping: 25 700
-# writes were 0.45 s of a 6-second bag's replay at 1 rev/s, more than reading it (issue 20).
+# writes were 0.45 s of a 6-second bag's replay at 1 rev/s, more than reading it.
 _MCAP_MESSAGE = np.dtype([("op", "u1"), ("length", "<u8"), ("channel", "<u2"),
                           ("sequence", "<u4"), ("log", "<u8"), ("publish", "<u8")])
 _MCAP_MESSAGE_OP = 0x05

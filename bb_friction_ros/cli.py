@@ -206,7 +206,7 @@ def _run_replay(args):
     except (FileNotFoundError, BBFrictionError) as exc:   # BagError, NothingAccepted included
         print(f"bb-friction replay: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:      # issue 23 #16: no traceback; summary.json says complete: false
+    except KeyboardInterrupt:      # no traceback; summary.json says complete: false
         print(f"bb-friction replay: interrupted; the outputs in {args.out} are partial "
               "(summary.json: \"complete\": false)", file=sys.stderr)
         return 130
@@ -375,7 +375,7 @@ def main(argv=None):
     except OSError as exc:
         where = exc.filename
         if where is None and exc.errno in OUT_OF_SPACE and getattr(args, "out", None):
-            # A write() on an open file fails without a filename (issue 23 finding 14):
+            # A write() on an open file fails without a filename:
             # the run's output directory is where the space ran out.
             where = args.out
         if where is None:

@@ -239,7 +239,7 @@ class _StrictLoader(yaml.SafeLoader):
 # Largest config, model, params or sweep file read [bytes].  The bundled ones are 1-3 kB and
 # a model file with every empirical term is a few kB; 4 MiB leaves room for long sweep value
 # lists while `--config /dev/zero` or a mistaken recording can no longer be read until
-# memory runs out (issue 23 #15).
+# memory runs out.
 MAX_CONFIG_BYTES = 4 * 2**20
 
 _FILE_KINDS = ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"),

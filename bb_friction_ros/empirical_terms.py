@@ -453,7 +453,7 @@ class TermKind:
         ``x`` holds np.float64 scalars (``LiveTerms``).  The same column functions as
         ``torque_nm``, with the parameters resolved once: a 0-d evaluation spends ~60 us per
         term in numpy's array machinery (np.stack, matmul), which made the fitted terms cost
-        replay more than half its time (issue 11).  The result equals ``torque_nm``'s bit
+        replay more than half its time (profiled).  The result equals ``torque_nm``'s bit
         for bit (tested): one column is the product numpy's one-element dot computes, more
         go through the same dot on the same array.
         """
@@ -832,7 +832,7 @@ def _uniform_transfer(cutoff_hz, step_us):
     The state recursion s_k+1 = Phi s_k + G0 v_k + G1 (v_k+1 - v_k) of ``_filter_step`` is
     linear and time-invariant at a fixed period, so from rest it is an IIR filter of the
     velocity (y and alpha outputs): scipy's lfilter runs it in C.  Measured need: the
-    acceleration cut-off is chosen by cross-validation over a grid (issue 19), a per-sample
+    acceleration cut-off is chosen by cross-validation over a grid, a per-sample
     Python loop per grid value took ~2 s on a 25,000-sample recording; this takes ~2 ms and
     agrees with the loop to 1e-13 of the peak.
     """

@@ -204,7 +204,7 @@ class FrictionNodeHarness:
             self.context = rclpy.Context()
             rclpy.init(context=self.context, domain_id=self.domain_id)
         self._switch_interval = sys.getswitchinterval()
-        sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)       # as friction_node's main() does
+        sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)       # as FrictionNode.__init__ does
         try:
             cli = []
             if self.params_file:

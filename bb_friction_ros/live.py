@@ -386,7 +386,7 @@ class LiveSchedule:
             # it stepped skipped a step and doubled the schedule (for 2 s per halving), and
             # the cold first step at start did the same at 1 rev/s.  (The test before the
             # angle test, a queue spanning a model period, let the queue grow to 10 ms at
-            # 20 rev/s and shed 25 % of the answers: issue 20.)
+            # 20 rev/s and shed 25 % of the answers.)
             behind = newest is not None and self._backlog(recv_ns) \
                 and runner.due_between(sample, newest)
             resets = runner.stats.resets
@@ -433,7 +433,7 @@ class LiveSchedule:
         Log a stamps-backwards reset, at most once per diagnostics period (counted always).
 
         A looping source resets at every loop, and a flaky one may reset at every sample:
-        one line per reset flooded the log (issue 23, finding 21: 1191 lines in 5 s).
+        one line per reset flooded the log (1191 lines in 5 s).
         """
         now = self._monotonic()
         logged, t_logged = self._resets_logged

@@ -11,9 +11,9 @@ The one reader and the one writer of its layout::
 
 A file without the ``ball_screw`` key holds the ball-screw sections at top level (next to
 ``empirical_terms``).  A file with no ball-screw values at all (empty, or only
-``ball_screw:``) is refused, naming the file: it would otherwise run as the paper's screw
-(issue 23, finding 9).  The bundled ``config/ball_screw.yaml`` is a model file without terms;
-the discrepancy workflow writes ``augmented.yaml`` with them; the node and replay read both.
+``ball_screw:``) is refused, naming the file: it would otherwise run as the paper's screw.
+The bundled ``config/ball_screw.yaml`` is a model file without terms; the discrepancy
+workflow writes ``augmented.yaml`` with them; the node and replay read both.
 """
 
 import yaml
@@ -25,7 +25,7 @@ from bb_friction_ros.empirical_terms import load_terms, TermSet
 SECTION = "ball_screw"
 TERMS = "empirical_terms"
 # Top-level key: which physics the runner adds the terms to.  "none" is written by
-# ``discrepancy --baseline zero`` (issue 23, finding 3): its terms were fitted to the whole
+# ``discrepancy --baseline zero``: its terms were fitted to the whole
 # measured torque, so adding them to the ball-screw model counted the friction twice.
 PHYSICS = "physics"
 PHYSICS_CHOICES = ("ball_screw", "none")
@@ -44,8 +44,8 @@ def _parts(path):
     else:
         section = {k: v for k, v in raw.items() if k not in (TERMS, PHYSICS)}
     if not section:
-        # issue 23, finding 9: an empty file (or only ``ball_screw:``), e.g. a custom screw
-        # truncated by a failed copy, used to run silently as the paper's screw
+        # An empty file (or only ``ball_screw:``), e.g. a custom screw truncated by a failed
+        # copy, used to run silently as the paper's screw.
         raise ConfigError(f"{path}: no ball-screw values: the file is empty or its "
                           f"'{SECTION}' mapping is; a model file must describe the screw "
                           f"(copy config/ball_screw.yaml and edit it)")

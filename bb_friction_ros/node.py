@@ -249,7 +249,7 @@ class FrictionNode(Node):
                          + ", ".join(self._taker.missing))
         level, message, values = self.live.status(notes)
         values["fast_inputs"] = self._taker.fast
-        # the fully qualified name: namespaced nodes stay apart (issue 23, finding 19)
+        # the fully qualified name: namespaced nodes stay apart
         status = DiagnosticStatus(name=f"{self.get_fully_qualified_name()}: friction model",
                                   hardware_id="ball_screw", level=bytes([level]),
                                   message=message)

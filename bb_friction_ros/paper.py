@@ -110,7 +110,7 @@ K_F = PaperValue(
            "the least-squares slope over |c/a| <= 0.5 at conf 0.56")
 EPS1_NUM = PaperValue(
     "eps1_num", 0.87, "%", "Table 2 (a), numerical", abs=0.03,
-    reason=f"{_PRINTED_2DP}; the acceptance band of issue #3: the paper does not say how "
+    reason=f"{_PRINTED_2DP}; our acceptance band: the paper does not say how "
            "it computed the contact loads of each ball (ours: rigid statics)")
 EPS1_AN = PaperValue(
     "eps1_an", 0.75, "%", "Table 2 (a), analytical", abs=0.01,
@@ -123,7 +123,7 @@ EPS_B = PaperValue(
     reason="matched top deviations null eps for any load (Eq. 22): zero up to rounding")
 F_B2B_NUM = PaperValue(
     "f_num", 4.01, "N", "Table 3 (a), numerical", rel=0.02,
-    reason="the acceptance band of issue #3: the contact loads of each ball depend on how "
+    reason="our acceptance band: the contact loads of each ball depend on how "
            "the statics with deviated angles are solved, which the paper does not say (the "
            "paper's own numerical and FEA values differ by 1.26 %)")
 F_B2B_AN = PaperValue(
@@ -134,7 +134,7 @@ F_B2B_B = PaperValue(
     reason="no contact forms in case (b): exactly zero")
 MAX_LOSS_RATIO = PaperValue(
     "max_ratio", 185.2, "%", "Fig. 9(c), worst case", abs=2.0,
-    reason="the acceptance band of issue #3: read from the worst corner of a map whose "
+    reason="our acceptance band: read from the worst corner of a map whose "
            "grid the paper does not give")
 T_NUM = PaperValue(
     "t_num", 0.74, "s", "Table 3 (a), numerical, MATLAB", target=False,
@@ -147,17 +147,17 @@ _GAP = ("absolute F_B2B is ~0.54 x the paper's (an independent re-implementation
         "at unchanged W/E*; see docs/assumptions_ball_screw.md")
 SCREW_F_B2B_A = PaperValue(
     "screw_f_b2b_a", 1.92, "N", "Table 5 (a), low-order numerical", rel=0.10, target=False,
-    reason=f"issue #4 asks +-10 %, NOT reached: {_GAP}")
+    reason=f"our target is +-10 %, NOT reached: {_GAP}")
 SCREW_F_B2B_B = PaperValue(
     "screw_f_b2b_b", 2.89, "N", "Table 5 (b), low-order numerical", rel=0.10, target=False,
-    reason=f"issue #4 asks +-10 %, NOT reached: {_GAP}")
+    reason=f"our target is +-10 %, NOT reached: {_GAP}")
 SCREW_F_B2B_RATIO = PaperValue(
     "screw_f_b2b_ratio", 2.89 / 1.92, "1", "Table 5, (b)/(a)", rel=0.01,
     reason="the ratio does not depend on the unstated load and E* conventions; the FEA "
            "ratio is 1.506, 0.1 % from the model's")
 SCREW_FRICTION_INCREASE_A = PaperValue(
     "screw_friction_increase_a", 39.2, "%", "Sec. 3.3, case (a)", abs=8.0,
-    reason="the acceptance band of issue #4: the load sharing and E* conventions are not "
+    reason="our acceptance band: the load sharing and E* conventions are not "
            "stated and move it by points (see the sensitivity rows of the report)")
 SCREW_FRICTION_INCREASE_B = PaperValue(
     "screw_friction_increase_b", 60.2, "%", "Sec. 3.3, case (b)", abs=8.0,

@@ -18,7 +18,7 @@ the new outputs; ``summary.json`` is written last with ``"complete": true``, or 
 a full disk.  If even that cannot be written, the partial outputs are removed: no output of
 a run that stopped is left unmarked.  ``duration_s`` is the
 recording's span in log time (when the recorder received the messages): one far-future
-header stamp does not make a 6-second bag last 2e9 s (issue 23 #20).
+header stamp does not make a 6-second bag last 2e9 s.
 """
 
 from array import array
@@ -97,8 +97,8 @@ class _Series:
     """
     The plotted columns, spilled to a temporary file as the bag streams (constant memory).
 
-    A 10-minute 1 kHz bag has 600k samples; kept as Python objects they took most of the
-    1.2 GB replay peaked at (issue 13 finding 26), and even packed they would be 38 MB.
+    A 10-minute 1 kHz bag has 600k samples; kept as Python objects they took most of
+    replay's 1.2 GB peak, and even packed they would be 38 MB.
     """
 
     COLUMNS = ("t", "torque", "b2b", "speed", "load", "groups", "largest", "meas")
@@ -189,7 +189,7 @@ class _Series:
 
 # CDR (little endian) of the two messages written per prediction, packed directly.
 # rosbags builds a message object and walks its type per message: ~70 us of the ~110 us per
-# sample that the output bag cost (profiled, issue 11).  The layouts are fixed (an empty
+# sample that the output bag cost (profiled).  The layouts are fixed (an empty
 # frame_id, no sequences but one 1-element array); test/test_replay.py checks every
 # byte against rosbags' own serialisation.  Offsets count from the payload after the 4-byte
 # encapsulation header; doubles align to 8.
@@ -244,7 +244,7 @@ class _OutputBag:
     The stream appends (connection, log time [ns], CDR) to ``pending`` in output order (the
     copy of each input message, then what the node publishes for it) and ``flush`` es once
     per block: a call per message, and the writer's per-message checks, cost more than the
-    packing itself (issue 20).
+    packing itself (profiled).
     """
 
     def __init__(self, path, inputs):
@@ -408,7 +408,7 @@ def _long_lived_frozen():
     The model, numba, rosbags' typestore and matplotlib are ~185 000 objects that live as
     long as the process; the stream allocates a few per message, and each collection they
     trigger walked them: 0.26 -> 0.17 s of CPU for a 6-second bag at 1 rev/s with the model
-    step taken out, 0.8 -> 0.6 s with it (issue 20, load 7-8; ``gc.freeze``).
+    step taken out, 0.8 -> 0.6 s with it (measured at load 7-8; ``gc.freeze``).
     """
     gc.freeze()
     try:
@@ -650,7 +650,7 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress,
         bar.close()
     stats = runner.stats
     # log time, not header stamps: a header stamp is whatever the driver wrote (one of
-    # 2e9 s claimed a 2e9 s recording replayed at 1e10 x real time, issue 23 #20)
+    # 2e9 s claimed a 2e9 s recording replayed at 1e10 x real time)
     span = (log_max - log_min) * 1e-9 if log_max > log_min else 0.0
     summary = {
         "complete": True,
@@ -659,7 +659,7 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress,
         "rejected": dict(stats.rejected),
         "resets": stats.resets,
         "late_samples": stats.late_samples,
-        # the shared runner's schedule (issue 20) and stamp stalls (issue 23, finding 2)
+        # the shared runner's schedule and stamp stalls
         "model_substeps": stats.substeps,
         "stamp_stalls": stats.stamp_stalls,
         "model_steps": stats.model_steps,

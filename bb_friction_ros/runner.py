@@ -6,7 +6,7 @@ same validation, the same model-step schedule (driven by the nut angle and the h
 stamps, never by wall time) and the same prediction rule.  Given the same accepted samples
 they give the same output, which is what makes replay a faithful stand-in for the live node.
 
-Schedule (issue 20): the whole-screw model is quasi-static, its balls follow the nut angle,
+Schedule: the whole-screw model is quasi-static, its balls follow the nut angle,
 so it steps by nut rotation: when the nut has turned ``model_step_deg`` since the last step,
 at once when the direction of the nut motion changes (start, stop, reversal), and, as a
 floor when the nut creeps or stands, when the input stamps have advanced by one model period
@@ -45,7 +45,7 @@ step): an unconverged solve can swing by tens of N m, and the old direction's fr
 a reversal would push the axis the wrong way.  ``feedforward_held`` says the value is held.
 The same rule covers a converged state: a sample that stands still, or that moves against
 the direction of the state answering it (a reversal whose step was skipped because the live
-model fell behind), gets 0 N m, counted in ``stats.feedforward_zeroed`` (issue 23, finding 1).
+model fell behind), gets 0 N m, counted in ``stats.feedforward_zeroed``.
 
 Look-ahead (``look_ahead_profile``): after a step, a copy of the model state is stepped ahead
 along the extrapolated motion (same velocity and load) to give the torque at a row of nut
@@ -141,7 +141,7 @@ class Prediction:
 
 # A Prediction is built for every input sample; the frozen dataclass's __init__ sets each of
 # its 19 fields through object.__setattr__: 1.9 us of the ~6 us the runner spends on a sample
-# answered from the held state (issue 20, replay at 1 rev/s).  ``_prediction`` fills the same
+# answered from the held state (measured in replay at 1 rev/s).  ``_prediction`` fills the same
 # instance dict in one update (0.8 us): an equal, equally frozen and hashable Prediction.
 _PREDICTION_FIELDS = tuple(f.name for f in fields(Prediction))
 _new_object = object.__new__
@@ -243,7 +243,7 @@ class RunnerStats:
     resets: int = 0
     # samples stamped a little before the newest (jitter, a delayed driver thread; the rule of
     # bags.LATE_STAMP_TOLERANCE_S): answered from the current state, neither stepping nor
-    # resetting it (issue 23, finding 6)
+    # resetting it (one late sample used to reset the balls' history)
     late_samples: int = 0
     # answers whose friction (the state and the friction terms) opposed the motion, cut to 0:
     # a pre-rolling state right after a reversal
@@ -259,9 +259,11 @@ class ModelRunner:
     Drive a whole-screw model from a stream of input samples (see module docstring).
 
     ``screw`` must provide ``reset(nut_angle_rad)`` and
-    ``step(nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s)`` returning a result with
-    ``torque_total_nm``, ``torque_b2g_nm``, ``torque_b2b_nm``, ``converged``, ``groups`` and
-    ``n_balls``.
+    ``step(nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s, substep=False)`` returning a
+    result with ``torque_total_nm``, ``torque_b2g_nm``, ``torque_b2b_nm``, ``converged``,
+    ``groups`` and ``azimuth_rad`` (one per ball: its size is the ball count); ``substep`` is
+    True for a step between two samples, whose state is never answered.  A look-ahead
+    profile steps a shallow copy of it (``profile_seed``).
     """
 
     def __init__(self, screw, model_rate_hz, terms=None, model_step_deg=None,
@@ -350,7 +352,7 @@ class ModelRunner:
         Take over from ``old``, the runner this one replaces (a runtime parameter change).
 
         The counters go on (diagnostics stay cumulative).  With the same empirical terms the
-        terms' run clock and acceleration filter carry over (issue 23, finding 7: a
+        terms' run clock and acceleration filter carry over (a
         ``thermal_drift`` term would otherwise restart from 0); the model state itself does
         not (the next sample starts a new run of the balls).  Returns True if the terms'
         clock carried over; False (counted in ``stats.term_restarts`` when this runner has
@@ -392,7 +394,7 @@ class ModelRunner:
                            sample):
             return True
         # Stamps that do not advance leave the time floor no time: a load change then steps
-        # at once, so a state of another load is never answered as fresh (issue 23, 2).
+        # at once, so a state of another load is never answered as fresh.
         return sample.stamp_s == self._last_stamp \
             and sample.axial_load_n != self._model_load
 
@@ -427,7 +429,7 @@ class ModelRunner:
         the tolerance, and at most ``LATE_SAMPLES_MAX`` such samples in a row; more, or further
         back, is a restart (a bag loop, a restarted source).  A single sample 10.5 ms late
         used to reset the balls' history and move every later prediction (up to 0.14 N m on
-        the demo bag, issue 23, finding 6).
+        the demo bag).
         """
         back = self._last_stamp - sample.stamp_s
         return 0.0 < back <= LATE_STAMP_TOLERANCE_S and self._late_run < LATE_SAMPLES_MAX
@@ -974,8 +976,8 @@ class InputAssembler:
 
     @max_axial_load_n.setter
     def max_axial_load_n(self, value):
-        # A limit lowered at runtime applies to the load already held too (issue 23,
-        # finding 10): samples are refused until a load within the new limit arrives.
+        # A limit lowered at runtime applies to the load already held too: samples are
+        # refused until a load within the new limit arrives.
         self._max_axial_load_n = value
         if self.load_n is not None and abs(self.load_n) > value:
             self._refused_load = (self.load_n, value)

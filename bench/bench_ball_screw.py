@@ -1,9 +1,9 @@
 """
-Benchmark of the ball screw model (issue #4, item 7; issue 20, item 2); prints, asserts nothing.
+Benchmark of the ball screw model; prints, asserts nothing.
 
     .venv/bin/python bench/bench_ball_screw.py [--steps 60] [--numpy] [--baseline REF]
 
-First (issue 20): the whole-screw step at N = 37, rigid and elastic, against a previous
+First: the whole-screw step at N = 37, rigid and elastic, against a previous
 version of the package (``--baseline``, a git ref of this repository, default ``main``) in
 the same process: the old ``bb_friction_ros`` is extracted from git into
 out/bench_ball_screw/ under another package name, and each step of the same motion is taken
@@ -82,7 +82,7 @@ def bench_screw(model, n_balls, steps, realtime=0, load_distribution="rigid"):
 
 
 BASELINE_PACKAGE = "bb_friction_ros_baseline"
-STEP_DEG = 3.6          # the paper's Sec. 3.4 step, the target of issue 20 (--step-deg)
+STEP_DEG = 3.6          # the paper's Sec. 3.4 step, where the step time is judged (--step-deg)
 
 
 def import_baseline(ref, workdir):

@@ -1,5 +1,5 @@
 """
-Convergence study of the model-step schedule (issue 20): error against a fine-step reference.
+Convergence study of the model-step schedule: error against a fine-step reference.
 
 Asserts nothing; prints the table the default ``model_step_deg`` was chosen from.
 
@@ -12,16 +12,16 @@ compared with a reference at the same nut angle.
 Reference: the same whole-screw model stepped along the same angle path every
 ``--ref-deg`` (0.18 deg: 2000 steps per revolution; the 1 kHz angles are multiples of it, so
 the reference has a step at every compared angle).  A second reference at twice that step
-shows how far the reference itself is converged (the issue's "two such references agree
-within 4 %").
+shows how far the reference itself is converged (the criterion: the two references agree
+within 4 %).
 
 Error: RMS over the samples after ``--settle-rev`` revolutions, as a share of the B2B
 variation: the standard deviation of the reference's B2B torque over the same samples (the
-ripple the schedule is meant to resolve).  "old": the time schedule of issue 11 and before
-(a step every 10 ms of input time, at reversals; ``model_step_deg`` out of the way).  The
-other rows are angle schedules with the 100 Hz time floor.  The CPU column is the model's
-share of one core at that speed: steps per second of input times the measured mean step
-time (this machine, this load; bench/bench_ball_screw.py for the step itself).
+ripple the schedule is meant to resolve).  "old": the time schedule used before the angle
+schedule (a step every 10 ms of input time, at reversals; ``model_step_deg`` out of the
+way).  The other rows are angle schedules with the 100 Hz time floor.  The CPU column is
+the model's share of one core at that speed: steps per second of input times the measured
+mean step time (this machine, this load; bench/bench_ball_screw.py for the step itself).
 
 Run: .venv/bin/python bench/bench_convergence.py [--speeds 1 5 10 20 40]
      [--steps-deg 1.8 3.6 7.2] [--revs 6] [--json out.json]
@@ -42,7 +42,7 @@ from bb_friction_ros.node_parameters import NodeParameters
 from bb_friction_ros.runner import InputSample, ModelRunner
 
 INPUT_RATE_HZ = 1000.0
-OLD_RATE_HZ = 100.0          # the time schedule's default before issue 20
+OLD_RATE_HZ = 100.0          # the time schedule's default before the angle schedule
 NO_ANGLE_STEP_DEG = 1e9      # an angle step never reached: the time schedule alone
 
 

@@ -1,4 +1,4 @@
-"""Benchmark of the discrepancy workflow (issues #6, #10): synthetic rates, measured drives, speed.
+"""Benchmark of the discrepancy workflow: synthetic rates, measured drives, speed.
 
 Random synthetic recordings on one model baseline (the reference trajectory of
 ``bb_friction_ros.discrepancy.synthetic``, computed once and cached): each has 0, 1 or 2
@@ -14,8 +14,8 @@ hidden effects of random physical magnitude (EFFECT_RANGES) and white noise of r
 Run: .venv/bin/python bench/bench_discrepancy.py [--cases 150] [--clean 60] [--seed 1]
      [--noise-scale 1.0] [--mismatch] [--no-realdata] [--no-speed] [--memory]
 
-Besides the synthetic set (which now draws the issue-#10 terms too: inertia, offset, the
-two asymmetries, angle_ripple), every run prints:
+Besides the synthetic set (which draws the later library terms too: inertia, offset,
+the two asymmetries, angle_ripple), every run prints:
 - **measured drives** (RViMLab, MIT licence; Mablekos-Alexiou, da Cruz, Bergeles, IEEE T-RO
   37(4) 2021), from ``$BB_FRICTION_REALDATA`` or ``../shared/realdata``: per drive the terms
   named, the held-out RMSE before/after, and on the validation runs the relative error of
@@ -23,7 +23,7 @@ two asymmetries, angle_ripple), every run prints:
   on the same samples (J alpha + c omega + T_c sign omega + T_0, alpha from the same filter);
 - **speed**: a 25,000-sample (25 s at 1 kHz) CSV, file to report with plots, through the
   command line, against the same run's rigid-body least-squares fit on it (thin reference);
-- ``--memory``: peak RSS of the workflow on a 10-minute 1 kHz bag (issue #13, finding 26).
+- ``--memory``: peak RSS of the workflow on a 10-minute 1 kHz bag.
 
 ``--mismatch`` is the honest stress test: effects whose shapes are NOT in the library
 (shear-thinning viscous drag, exponential Stribeck, linear thermal drift, a third lead
@@ -140,15 +140,15 @@ def main():
     ap.add_argument("--no-speed", action="store_true", help="skip the 25,000-sample timing")
     ap.add_argument("--servo", action="store_true",
                     help="servo moves with sharp acceleration edges at 2 kHz to 10 Hz: the "
-                    "chosen cut-off against a fixed one (issue 19)")
+                    "chosen cut-off against a fixed one")
     ap.add_argument("--noise-floor", action="store_true",
                     help="measured drives: the velocity-spectrum noise-floor cut-off against "
-                    "the cross-validated choice (issue 19, item 1: 'measure both')")
+                    "the cross-validated choice")
     ap.add_argument("--memory", action="store_true",
                     help="peak RSS on a 10-minute 1 kHz bag (writes it first; minutes)")
     ap.add_argument("--write-long-bag", metavar="DIR", help=argparse.SUPPRESS)
     ap.add_argument("--physical", action="store_true",
-                    help="issue 21: hidden physical parameters (theta, mu, preload) and "
+                    help="hidden physical parameters (theta, mu, preload) and "
                     "empirical-only cases; time and model runs on a 60 s 1 kHz recording")
     ap.add_argument("--empirical-effect", default=None, choices=PHYSICAL_EXTRA_EFFECTS,
                     help="--physical: the empirical-only cases all hide this effect (e.g. "
@@ -315,7 +315,7 @@ def _measured_drives(title, header=None):
 
 def servo_section(settings):
     """
-    Sharp-edged inertia (trapezoidal moves) recorded at 2 kHz, 250, 50 and 10 Hz (issue 19).
+    Sharp-edged inertia (trapezoidal moves) recorded at 2 kHz, 250, 50 and 10 Hz.
 
     Per rate: the cut-off chosen from the data and the share of the reducible held-out gap it
     removes, against a fixed 10 Hz cut-off (2 Hz at 10 Hz, its safe maximum), same run.
@@ -348,7 +348,7 @@ def servo_section(settings):
 
 def realdata_section(settings):
     """
-    The measured drives: fit on half the runs, --validate on the others (issue 19).
+    The measured drives: fit on half the runs, --validate on the others.
 
     Per drive: the chosen acceleration cut-off, and the held-out and validation relative
     errors of the workflow and of the rigid-body least-squares reference that the same run
@@ -497,7 +497,7 @@ def speed_section():
 
 
 def memory_section():
-    """Peak RSS of the workflow on a 10-minute 1 kHz bag (issue #13, finding 26)."""
+    """Peak RSS of the workflow on a 10-minute 1 kHz bag."""
     import resource
     import subprocess
     import sys
@@ -541,7 +541,7 @@ def _rss_mb():
 
 
 def memory_phases(bag, baseline):
-    """Print the peak RSS after each phase of the workflow on ``bag`` (issue 19)."""
+    """Print the peak RSS after each phase of the workflow on ``bag``."""
     import gc
     from bb_friction_ros.config import bundled_config
     from bb_friction_ros.discrepancy import workflow
@@ -585,7 +585,7 @@ def write_long_bag(path, minutes=10.0, rate_hz=1000.0):
 
 
 # ------------------------------------------------------------------------------------------
-# --physical (issue 21): the model's own parameters hidden from the config
+# --physical: the model's own parameters hidden from the config
 
 # Effects drawn on top of a physical case, or alone in an empirical-only case: those the
 # physical trajectory (20 s at 50 Hz) can carry; inertia and lead/ripple need the reference
@@ -627,7 +627,7 @@ def physical_case_of(kind, rng, cache, mismatch, empirical=PHYSICAL_EXTRA_EFFECT
 
 
 def physical_section(args):
-    """Print the named share, parameter errors, false alarms and the cost (issue 21)."""
+    """Print the named share, parameter errors, false alarms and the cost."""
     from bb_friction_ros.discrepancy import physical as ph
     from bb_friction_ros.discrepancy.synthetic import PHYSICAL_RANGES
     from bb_friction_ros.node_parameters import NodeParameters
@@ -772,12 +772,12 @@ def physical_section(args):
 
 
 def within_tolerance(r):
-    """Tell whether a named physical value is within issue 21's tolerance of the truth."""
+    """Tell whether a named physical value is within the target tolerance of the truth."""
     if r["hidden"] == "contact_angle_deviation":
         return abs(r["value"] - r["true"]) <= THETA_TARGET_DEG
     if r["hidden"] == "friction_coefficient":
         return abs(r["value"] / r["true"] - 1.0) <= MU_TARGET_RELATIVE
-    return True           # the issue sets no tolerance for the preload; its error is printed
+    return True           # no tolerance is set for the preload; its error is printed
 
 
 def beside_hidden(d, rec, n_fit, terms, settings):

@@ -1,5 +1,5 @@
 """
-Feedforward accuracy at 1 kHz: zero-order hold vs the look-ahead profile (issue #11).
+Feedforward accuracy at 1 kHz: zero-order hold vs the look-ahead profile.
 
 Asserts nothing; prints the table.
 

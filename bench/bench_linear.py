@@ -1,4 +1,4 @@
-"""Benchmarks of the linear-bearing models (issues #3, #15); prints figures, asserts nothing.
+"""Benchmarks of the linear-bearing models; prints figures, asserts nothing.
 
 Run: .venv/bin/python bench/bench_linear.py
 

@@ -1,5 +1,5 @@
 """
-friction_node against the thinnest rclpy node, same client, same run (issue #11); asserts nothing.
+friction_node against the thinnest rclpy node, same client, same run; asserts nothing.
 
 For each input rate, two processes are started one after the other: ``bench/thin_node.py``
 (answers each nut_state with an empty FrictionPrediction of the same stamp, nothing else) and
@@ -310,7 +310,7 @@ def main():
     ap.add_argument("--duration", type=float, default=10.0)
     ap.add_argument("--rates", type=float, nargs="+", default=[500.0, 1000.0, 2000.0])
     ap.add_argument("--json", help="also write all figures to this file")
-    ap.add_argument("--rev-s", type=float, default=1.0, help="nut speed [rev/s] (issue 20: "
+    ap.add_argument("--rev-s", type=float, default=1.0, help="nut speed [rev/s] ("
                     "20 rev/s steps the model every 1.8 deg, 4000 steps/s)")
     ap.add_argument("--repeats", type=int, default=1,
                     help="rounds of all kinds, alternating; the ratios' median is printed")

@@ -1,7 +1,7 @@
 """
 Replay of a long recording: peak memory (RSS) and speed, against a bare read of the same bag.
 
-Issue 12 / 13 finding 26: a 10-minute, 1 kHz mcap bag must replay in bounded memory (target
+A 10-minute, 1 kHz mcap bag must replay in bounded memory (target
 <= 300 MB peak RSS).  The bag (nut_state and measured_torque at 1 kHz, axial_load at 100 Hz,
 reversing nut motion) is generated once into ``--workdir`` (streamed, never held in memory).
 Each figure is the peak RSS of a child process (``wait4``), and two baselines are measured in

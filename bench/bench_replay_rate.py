@@ -1,5 +1,5 @@
 """
-Replay speed at 1 and 20 rev/s (issue 20, item 5: >= 30x real time at 1 rev/s, >= 5x at 20).
+Replay speed at 1 and 20 rev/s (the targets: >= 30x real time at 1 rev/s, >= 5x at 20).
 
 Asserts nothing; prints the table.
 

@@ -4,9 +4,9 @@ Replay's own CPU, the model step left out: everything ``bb-friction replay`` doe
 Asserts nothing; prints the figures.
 
 bench_replay_rate.py splits replay's CPU into the model, reading and "the rest" by
-subtracting separately measured parts, so the rest carries the noise of three measurements
-(issue 20, item 5).  Here it is measured directly: each replay runs in a child process in
-which ``WholeScrew.step`` returns the results of the first ``RECORDED`` real steps over and
+subtracting separately measured parts, so the rest carries the noise of three measurements.
+Here it is measured directly: each replay runs in a child process in which
+``WholeScrew.step`` returns the results of the first ``RECORDED`` real steps over and
 over (the contact groups still change, so the output bag still writes them; the CPU of the
 real steps is subtracted); the runner's
 schedule, reading, decoding, alignment, CSV, plotted series and the output bag run as in a

@@ -1,7 +1,7 @@
 """
 Replay speed on one recording: this installation against a baseline, alternately, same run.
 
-Issue 11's target: replay >= 30x real time on the demo recording, with and without the
+The target: replay >= 30x real time on the demo recording, with and without the
 discrepancy workflow's augmented terms.  Each configuration (plain / ``--config AUGMENTED``,
 with and without the output bag) is replayed ``--repeats`` times by each ``bb-friction``,
 alternating, so both see the same machine load; the figure is replay's own

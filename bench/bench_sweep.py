@@ -1,4 +1,4 @@
-"""Benchmarks of bb-friction sweep (issue #7); prints figures, asserts nothing.
+"""Benchmarks of bb-friction sweep; prints figures, asserts nothing.
 
 Run: .venv/bin/python bench/bench_sweep.py [--linear-samples 10000] [--scaling-samples 4000]
                                             [--screw-samples 1000] [--skip-screw]

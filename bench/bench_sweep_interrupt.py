@@ -1,11 +1,11 @@
-"""Issue 13 #27: a 10-million-sample sweep (batch 50): client memory, first parts, Ctrl-C.
+"""A 10-million-sample sweep (batch 50): client memory, first parts, Ctrl-C.
 
 Run: .venv/bin/python bench/bench_sweep_interrupt.py [--seconds 40] [--workers 2]
 
 Starts ``bb-friction sweep`` on a 10^7-sample linear-pair Monte Carlo (200 000 batches),
 prints the main process's RSS and the part files saved every 10 s, then sends SIGINT and
 prints how long the command takes to exit (status 130) and how many parts it kept.  Before
-the bounded window the issue measured: RSS 190 -> 455 MB (every task submitted up front),
+the bounded window this bench measured: RSS 190 -> 455 MB (every task submitted up front),
 0 parts in 40 s, 65 s to stop.  Prints figures and the load (uptime); asserts nothing.
 """
 

@@ -1,5 +1,5 @@
 """
-Diagnose the mu / load_dependent ties of ``bench_discrepancy.py --physical`` (issue 21).
+Diagnose the mu / load_dependent ties of ``bench_discrepancy.py --physical``.
 
 Reruns the bench's cases of one seed (the same draws, in the same order) and prints, per
 case, what was named, ``physical.notes`` (a tie's fit-part and held-out gaps) and, where mu

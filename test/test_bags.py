@@ -1,4 +1,4 @@
-"""Reading recordings: damaged bags are clear errors naming the file (issue 13 finding 17)."""
+"""Reading recordings: damaged bags are clear errors naming the file."""
 
 import math
 
@@ -74,7 +74,7 @@ def test_a_directory_without_metadata_is_not_a_bag(tmp_path):
 
 
 def test_measured_torque_is_aligned_run_by_run():
-    """Issue 13 finding 6: the same stamps in two passes keep their own measurements."""
+    """The same stamps in two passes keep their own measurements."""
     meas = [Event("measured_torque", t, value=v) for t, v in
             [(0.0, 1.0), (1.0, 2.0), (0.0, 10.0), (1.0, 20.0)]]
     got = measured_torque_at(meas, [0.0, 0.5, 1.0, 0.25, 0.5, 2.0])
@@ -142,7 +142,7 @@ def test_fast_input_decoding_equals_rosbags_and_leaves_anything_odd_to_it():
         assert fast_wrench_force_z(raw + bytes(4)) is None
 
 
-# --- issue 23 #6: a late stamp is not a restart; nothing is held without bound ------------
+# --- a late stamp is not a restart; nothing is held without bound ---------------------------
 
 def _stream(n, rate_hz=1000.0):
     return [k / rate_hz for k in range(n)]
@@ -214,7 +214,7 @@ def test_unmatched_measured_samples_are_not_held_without_bound():
 
 
 def test_one_far_future_stamp_is_not_a_restart():
-    """Issue 23 #20: one stamp at 2e9 s, then the stream carries on: same run, counted."""
+    """One stamp at 2e9 s, then the stream carries on: same run, counted."""
     from bb_friction_ros.bags import MeasuredAligner
     al = MeasuredAligner()
     out = []
@@ -249,7 +249,7 @@ def test_one_far_future_measured_stamp_brackets_nothing():
 @pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
 def test_batched_writes_are_the_bag_rosbags_writes_message_by_message(tmp_path, storage):
     """
-    BagWriter writes mcap in batches into rosbags' own chunk bookkeeping (issue 20: 15 us a
+    BagWriter writes mcap in batches into rosbags' own chunk bookkeeping (15 us a
     message saved): the files must be byte for byte those of rosbags' writer called once per
     message, across chunk boundaries (1 MiB) and batch boundaries, with interleaved topics
     and log times going back.  sqlite3 is written by rosbags itself, message by message.
@@ -293,7 +293,7 @@ def test_batched_writes_are_the_bag_rosbags_writes_message_by_message(tmp_path, 
 @pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
 def test_blocks_decode_what_messages_decodes(tmp_path, storage):
     """
-    BagInput.blocks (replay, issue 20) decodes messages sharing a layout with numpy: every
+    BagInput.blocks (replay) decodes messages sharing a layout with numpy: every
     value equals messages()' Event, and anything else (another frame_id or joint list, a
     missing velocity, NaN, big-endian, another joint) is left to Block.event, which gives
     messages()' Event; counts and joint names agree; block boundaries change nothing.

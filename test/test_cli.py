@@ -19,7 +19,7 @@ def run(capsys, *argv):
 
 @pytest.mark.parametrize("model", ["numerical", "analytical"])
 def test_linear_json_contract(capsys, model):
-    """--json prints exactly one JSON object with the issue's keys."""
+    """--json prints exactly one JSON object with the documented keys."""
     code, out, _ = run(capsys, "linear", "--theta-deg", "2", "--rho", "-0.6", "--ny-n", "100",
                        "--mu", "0.1", "--v-mm-s", "10", "--model", model, "--json")
     assert code == 0
@@ -67,7 +67,7 @@ def test_reproduce_writes_report(tmp_path, capsys):
         assert (tmp_path / f"{name}.png").stat().st_size > 10_000
     report = (tmp_path / "report.md").read_text()
     assert "| f_num |" in report and "| (+-10 %) |" in report
-    # Ball screw (issue 15): both load distributions, and the whole theta-amplitude sweep
+    # Ball screw: both load distributions, and the whole theta-amplitude sweep
     # with the calibrated amplitude and its figure.
     screw = {r["quantity"] for r in data["Ball screw (Sec. 3)"]}
     for dist in ("rigid", "elastic"):
@@ -83,7 +83,7 @@ def test_reproduce_writes_report(tmp_path, capsys):
 
 
 def test_every_documented_command_is_registered(capsys):
-    """The commands the issues name (users script them) are all reachable from main."""
+    """The documented commands (users script them) are all reachable from main."""
     from bb_friction_ros.cli import build_parser
     sub = next(a for a in build_parser()._actions if a.dest == "command")
     assert {"linear", "reproduce", "screw-pair", "screw-sim", "replay", "node", "demo",

@@ -1,4 +1,4 @@
-"""Issue 13 findings 21 and 22: bad --out paths and bad numeric flags, exit 2 by name."""
+"""Bad --out paths and bad numeric flags: exit 2, naming them."""
 
 import pytest
 
@@ -91,7 +91,7 @@ def test_late_oserror_names_the_file(tmp_path, monkeypatch, capsys):
     (["demo", "--speed", "inf"], "--speed"),
 ])
 def test_bad_numeric_flags_refused_by_name(argv, flag, tmp_path, capsys):
-    """Finding 22: --grid 0/-3 and --speed 0/negative/NaN were tracebacks or half-runs."""
+    """--grid 0/-3 and --speed 0/negative/NaN were tracebacks or half-runs."""
     with pytest.raises(SystemExit) as exc:
         main(argv + ["--out", str(tmp_path / "out")])
     assert exc.value.code == 2
@@ -99,7 +99,7 @@ def test_bad_numeric_flags_refused_by_name(argv, flag, tmp_path, capsys):
     assert not (tmp_path / "out").exists()
 
 
-# --- issue 22 item 4 and issue 23 finding 14: one error base, real disk-full failures ------
+# --- one error base, real disk-full failures -----------------------------------------------
 
 # Runs the CLI in a child whose file-size limit makes a write fail mid-run as a full disk does
 # (EFBIG from write(), no filename on the error).  SIGXFSZ is ignored so the write returns an

@@ -55,7 +55,7 @@ def test_bundled_config_is_table1(repo_root):
 
 
 @pytest.mark.parametrize("text,needle", [
-    # issue 13 finding 19: badly shaped files are refused by name, never a traceback
+    # badly shaped files are refused by name, never a traceback
     ("- 1\n- 2\n", "expected a mapping of keys at top level, got list"),
     ("just a string\n", "expected a mapping of keys at top level, got str"),
     ("1: 2\n", "linear_bearing: key 1 is not a name"),
@@ -92,7 +92,7 @@ def test_integral_float_is_an_integer_field(tmp_path):
 
 
 @pytest.mark.parametrize("key,text,si", [
-    # issue 13 finding 7: YAML 1.1 reads 1e1 as a string; parse it, then convert the unit
+    # YAML 1.1 reads 1e1 as a string; parse it, then convert the unit
     ("groove_velocity_m_s", "groove_velocity_mm_s: 1e1", 10e-3),
     ("nominal_contact_angle_rad", "nominal_contact_angle_deg: 4e1", math.radians(40.0)),
     ("ball_radius_m", "ball_radius_mm: 5e0", 5e-3),
@@ -117,7 +117,7 @@ def test_one_edge_unit_parser():
             parse_number(bad, "k")
 
 
-# --- issue 23 #11: more balls than fit on the track ----------------------------------------
+# --- more balls than fit on the track -------------------------------------------------------
 
 def _crowded_track(tmp_path, n_balls=40):
     path = tmp_path / "crowded.yaml"
@@ -168,7 +168,7 @@ def test_more_balls_than_fit_exits_2_everywhere(tmp_path, capsys, ros_context):
         assert "ball_screw.track.n_balls" in err and "Traceback" not in err, (name, err)
 
 
-# --- issue 23 #15: config files must be regular files of bounded size ----------------------
+# --- config files must be regular files of bounded size ------------------------------------
 
 def test_oversized_config_is_refused_naming_the_file(tmp_path):
     """A 5 MiB file (a YAML comment: valid and empty) is refused, not read as no settings."""

@@ -1,5 +1,5 @@
 """
-The default model-step schedule converged at servo speeds (issue 20, "done when").
+The default model-step schedule converged at servo speeds (its acceptance criterion).
 
 With the defaults, the prediction at every 1 kHz input of steady rotation at 10 and 20 rev/s
 is within 0.2 of the B2B torque variation of a fine-step reference at the same nut angles
@@ -24,7 +24,7 @@ from bb_friction_ros.runner import InputSample, ModelRunner
 REF_DEG = 0.36
 REVS, SETTLE_REVS = 6.0, 1.0
 LOAD_N = 1500.0
-TARGET = 0.2        # issue 20: error <= 0.2 of the B2B variation at 10 and 20 rev/s
+TARGET = 0.2        # required: error <= 0.2 of the B2B variation at 10 and 20 rev/s
 
 
 def _runner(step_deg, rate_hz=None, after=None, cfg=None):

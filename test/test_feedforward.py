@@ -1,6 +1,6 @@
 """
 Look-ahead feedforward: the profile (runner), the controller-side interpolator, and the safe
-feedforward policy when a step does not converge (issue #11; issue #13 finding 2).
+feedforward policy when a step does not converge.
 """
 
 import math
@@ -168,7 +168,7 @@ def test_interpolator_load_scaling():
     assert ff.torque_at(0.05, 5.0, -1500.0) == pytest.approx(2.0, rel=1e-15)  # other flank
 
 
-# --- hostile numbers (issue 23, findings 5 and 22) -----------------------------------------
+# --- hostile numbers ----------------------------------------------------------------------
 
 NAN, INF = float("nan"), float("inf")
 
@@ -260,7 +260,7 @@ def test_interpolator_takes_the_message(ros_context):
     assert ff.torque_at(0.05, 5.0) == pytest.approx(1.5)
 
 
-# --- safe feedforward when a step does not converge (issue #13, finding 2) ---------------
+# --- safe feedforward when a step does not converge -------------------------------------
 
 class ScriptedScrew:
     """Steps return scripted (torque, converged); the runner's policy is under test."""

@@ -1,5 +1,5 @@
 """
-tools/import_epos.py refuses flags that would write wrong numbers (issue 23, finding 18).
+tools/import_epos.py refuses flags that would write wrong numbers.
 
 A negative nominal torque flips every torque's sign, zero erases them, NaN poisons every row;
 a NaN axial load does the same to ``axial_load_n``.  Each is refused by argparse naming the

@@ -88,7 +88,7 @@ def test_local_domain_id_is_off_the_default_domain():
 
 
 def test_the_names_are_the_contract():
-    """Topic names and types users script against (README, issue 1): pinned here, once."""
+    """Topic names and types users script against (README): pinned here, once."""
     assert (interface.NUT_STATE, interface.AXIAL_LOAD, interface.MEASURED_TORQUE) == \
         ("nut_state", "axial_load", "measured_torque")
     assert interface.OUTPUTS == ("friction/prediction", "friction/feedforward",

@@ -360,7 +360,7 @@ def test_a_model_rate_below_the_configured_floor_warns():
 
 
 def test_backward_stamps_are_counted_and_logged_at_most_once_per_period():
-    """Issue 23, finding 21: a reset at every sample gave one warning each (1191 in 5 s)."""
+    """A reset at every sample used to give one warning each (1191 in 5 s)."""
     clock = Clock()
     p = NodeParameters(max_answer_age_s=10.0, diagnostics_rate_hz=1.0)
     live, rec = schedule(p, clock=clock)

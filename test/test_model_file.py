@@ -39,7 +39,7 @@ def test_flat_file_with_terms(tmp_path):
 
 
 @pytest.mark.parametrize("text,needle", [
-    # issue 13 findings 1 and 19: each was a traceback (or silently ignored) before
+    # each was a traceback (or silently ignored) before
     ("1: 2\n", "ball_screw: key 1 is not a name"),
     ("ball_screw:\n  track: {n_balls: 37.7}\n", "ball_screw.track.n_balls: must be an integer"),
     ("ball_screw:\n  operation: {n_steps: 200.5}\n",
@@ -72,7 +72,7 @@ def test_binary_model_file_is_refused(tmp_path):
 
 
 def test_exponent_string_with_edge_unit(tmp_path):
-    """Issue 13 finding 7: ``module_theta2_deg: 2e0`` is 2 degrees, not refused as 2 rad."""
+    """``module_theta2_deg: 2e0`` is 2 degrees, not refused as 2 rad."""
     p = tmp_path / "m.yaml"
     p.write_text("ball_screw:\n  operation: {module_theta2_deg: 2e0}\n")
     assert load_ball_screw(p).operation.module_theta2_rad == pytest.approx(0.0349065850398866)
@@ -84,7 +84,7 @@ def test_exponent_string_with_edge_unit(tmp_path):
     "ball_screw:\nempirical_terms:\n  - {name: seal_drag, params: {torque_nm: 0.01}}\n",
 ])
 def test_model_file_without_ball_screw_values_is_refused(tmp_path, text):
-    """Issue 23 finding 9: an empty or truncated model file ran silently as the paper's screw."""
+    """An empty or truncated model file used to run silently as the paper's screw."""
     p = tmp_path / "truncated.yaml"
     p.write_text(text)
     for load in (load_model_file, load_ball_screw):

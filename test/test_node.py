@@ -247,7 +247,7 @@ def test_readme_pytest_example_runs_with_the_plugin_fixture(tmp_path, repo_root)
     assert "1 passed" in proc.stdout
 
 
-BAD_MODEL_FILES = {   # issue 13 findings 1 and 19: each killed the node or gave a traceback
+BAD_MODEL_FILES = {   # each used to kill the node or give a traceback
     "int_key.yaml": ("1: 2\n", "ball_screw: key 1 is not a name"),
     "float_balls.yaml": ("ball_screw:\n  track: {n_balls: 37.7}\n",
                          "ball_screw.track.n_balls: must be an integer"),
@@ -306,7 +306,7 @@ def test_node_refuses_what_replay_refuses(ros_context):
 
 
 def test_model_rate_is_not_negative_after_a_runtime_rebuild(ros_context):
-    """Issue 14: the rate window kept the old runner's step count, giving one negative rate."""
+    """The rate window used to keep the old runner's step count, giving one negative rate."""
     from bb_friction_ros.runner import InputSample
     node = FrictionNode(context=ros_context)
     try:

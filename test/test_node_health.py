@@ -1,6 +1,6 @@
 """
-friction_node's health on /diagnostics and its input path (issue 22 items 1 and 5, issue 23
-finding 19), in-process under rclpy through the public harness.
+friction_node's health on /diagnostics and its input path, in-process under rclpy through
+the public harness.
 """
 
 from bb_friction_ros import ros_inputs
@@ -18,7 +18,7 @@ def test_diagnostics_error_without_input_then_ok_with_it(ros_context):
     with FrictionNodeHarness(params, context=ros_context, namespace="/axis_x") as h:
         status = h.diagnostics.wait_until(lambda m: m.status[0].level == b"\x02").status[0]
         assert "no nut_state" in status.message
-        # the fully qualified name tells namespaced nodes apart (issue 23, finding 19)
+        # the fully qualified name tells namespaced nodes apart
         assert status.name == "/axis_x/friction_node: friction model"
         h.publish_axial_load(1500.0, stamp_s=0.0)
         for k in range(1, 40):

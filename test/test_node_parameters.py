@@ -10,7 +10,7 @@ def test_bundled_params_file_is_the_defaults(repo_root):
     assert load_params_file(repo_root / "config" / "friction_node.yaml") == NodeParameters()
 
 
-BAD_VALUES = [   # issue 13 finding 23: replay accepted the first two, and "fast" crashed it
+BAD_VALUES = [   # replay used to accept the first two, and "fast" crashed it
     ("model_rate_hz", 5000.0, "model_rate_hz: must be <= 2000.0 Hz"),
     ("model_rate_hz", 100, "model_rate_hz: expected a double"),
     ("model_rate_hz", "fast", "model_rate_hz: expected a double"),
@@ -20,20 +20,20 @@ BAD_VALUES = [   # issue 13 finding 23: replay accepted the first two, and "fast
     ("reliable_qos", 1, "reliable_qos: expected a bool"),
     ("nut_joint", 3, "nut_joint: expected a string"),
     ("model_rate_hz", float("nan"), "model_rate_hz: must be finite"),
-    # issue 13 finding 5: an empty joint name matches nothing, every input would be rejected
+    # an empty joint name matches nothing, every input would be rejected
     ("nut_joint", "", "nut_joint: must be a non-empty joint name"),
     ("nut_joint", "  ", "nut_joint: must be a non-empty joint name"),
-    # issue 11: the answer-age bound and the look-ahead profile's shape
+    # the answer-age bound and the look-ahead profile's shape
     ("max_answer_age_s", 0.0, "max_answer_age_s: must be >= 0.0001 s"),
     ("max_answer_age_s", 1, "max_answer_age_s: expected a double"),
     ("profile_horizon_periods", 1.0, "profile_horizon_periods: must be >= 2.0"),
     ("profile_points", 1, "profile_points: must be >= 2"),
-    # issue 20: the angle schedule
+    # the angle schedule
     ("model_step_deg", 0.0, "model_step_deg: must be >= 0.05 deg"),
     ("model_step_deg", 3, "model_step_deg: expected a double"),
     ("model_step_deg", 40.0, "max_model_step_deg: must be >= model_step_deg = 40 deg"),
     ("max_model_step_deg", 1.0, "max_model_step_deg: must be >= model_step_deg"),
-    # issue 22, item 6: the GIL switch interval (sys.setswitchinterval refuses <= 0 itself)
+    # the GIL switch interval (sys.setswitchinterval refuses <= 0 itself)
     ("gil_switch_interval_s", 0.0, "gil_switch_interval_s: must be >= 1e-05 s"),
     ("gil_switch_interval_s", 1, "gil_switch_interval_s: expected a double"),
 ]
@@ -68,7 +68,7 @@ def test_unknown_parameter_is_refused_by_name():
 
 
 def test_replay_warns_about_an_unknown_parameter(tmp_path, capsys):
-    """Issue 13 finding 5: a misspelt key in a params file is named, not silently ignored."""
+    """A misspelt key in a params file is named, not silently ignored."""
     from bb_friction_ros.cli import main
     p = tmp_path / "params.yaml"
     p.write_text("friction_node:\n  ros__parameters:\n    queue_sise: 10\n"

@@ -1,5 +1,5 @@
 """
-friction_node: runtime parameter changes keep what they should (issue 23, findings 7, 10).
+friction_node: runtime parameter changes keep what they should.
 
 In-process under rclpy (test_node_servo.Probe), one input at a time.
 """

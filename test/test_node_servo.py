@@ -1,5 +1,5 @@
 """
-friction_node at servo rates (issue #11) and its reliability findings (issue #13: 2, 3, 4, 5).
+friction_node at servo rates (0.5-2 kHz), and how it stays reliable there.
 
 In-process under rclpy executors (no launch); timing figures live in bench/bench_node.py,
 these tests check behaviour: bounded answer age with everything counted, live = replay on
@@ -201,7 +201,7 @@ def test_profile_published_at_every_model_step(ros_context, after):
 
 
 def test_feedforward_never_carries_a_nonconverged_torque(ros_context):
-    """Finding 2: prediction says converged=false with the raw number; feedforward holds."""
+    """Unconverged: prediction says converged=false with the raw number; feedforward holds."""
     from bb_friction_ros.runner import ModelRunner
     # (the look-ahead steps a copy of the screw: the trailing entries are for the last copy)
     # a step every 10 ms (the time floor; model_step_deg out of the way): the policy is tested
@@ -227,7 +227,7 @@ def test_feedforward_never_carries_a_nonconverged_torque(ros_context):
 
 
 def test_two_nodes_on_one_domain_are_reported(ros_context):
-    """Finding 3: a second friction_node publishing our outputs is warned about."""
+    """A second friction_node publishing our outputs is warned about."""
     a = FrictionNode(context=ros_context)
     b = FrictionNode(context=ros_context)
     try:
@@ -254,7 +254,7 @@ def test_two_nodes_on_one_domain_are_reported(ros_context):
 @pytest.mark.parametrize("sig,delay_s", [(signal.SIGTERM, 0.3), (signal.SIGINT, 0.3),
                                          (signal.SIGTERM, 1.0), (signal.SIGINT, 1.2)])
 def test_early_signal_exits_cleanly(sig, delay_s):
-    """Finding 4: SIGTERM/SIGINT during start-up: exit 0, no traceback."""
+    """SIGTERM/SIGINT during start-up: exit 0, no traceback."""
     proc = subprocess.Popen([console_script("friction_node")], stderr=subprocess.PIPE,
                             text=True)
     time.sleep(delay_s)
@@ -265,7 +265,7 @@ def test_early_signal_exits_cleanly(sig, delay_s):
 
 
 def test_signal_inside_an_extension_import_exits_cleanly(monkeypatch):
-    """Finding 4: a signal while scipy/numba initialise surfaces as ImportError: still exit 0.
+    """A signal while scipy/numba initialise surfaces as ImportError: still exit 0.
 
     Seen under load in test_early_signal_exits_cleanly ("ImportError: initialization failed");
     simulated here, because the timing cannot be forced.  Without a signal the error stays.
@@ -290,7 +290,7 @@ def test_signal_inside_an_extension_import_exits_cleanly(monkeypatch):
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_signal_before_the_node_spins_ends_the_process_at_once(sig):
-    """Finding 4: during start-up a signal exits 0 at once instead of raising into rclpy.
+    """During start-up a signal exits 0 at once instead of raising into rclpy.
 
     An exception raised into rclpy.init or the node's construction was swallowed once, and
     the node ran on (colcon test timed out).  Once the node spins, signals raise again.
@@ -316,7 +316,7 @@ def test_signal_before_the_node_spins_ends_the_process_at_once(sig):
 
 
 def test_empty_nut_joint_is_refused(ros_context):
-    """Finding 5: nut_joint = '' would reject every input: refused at start and at runtime."""
+    """nut_joint = '' would reject every input: refused at start and at runtime."""
     with pytest.raises(ConfigError, match="nut_joint"):
         FrictionNode(context=ros_context, parameter_overrides=[Parameter("nut_joint",
                                                                          value="")])
@@ -331,7 +331,7 @@ def test_empty_nut_joint_is_refused(ros_context):
 
 
 def test_gil_switch_interval_is_the_nodes_parameter(ros_context):
-    """Issue 22, item 6: the node sets the interpreter's switch interval from its parameter,
+    """The node sets the interpreter's switch interval from its parameter,
     at start and at runtime (the process-wide setting is restored afterwards)."""
     import sys
     before = sys.getswitchinterval()
@@ -353,7 +353,7 @@ def test_gil_switch_interval_is_the_nodes_parameter(ros_context):
 
 
 def test_unknown_parameter_in_params_file_is_warned(tmp_path):
-    """Finding 5: a misspelt key in a params file is named (log and diagnostics)."""
+    """A misspelt key in a params file is named (log and diagnostics)."""
     import rclpy
     params = tmp_path / "params.yaml"
     params.write_text("friction_node:\n  ros__parameters:\n    queue_sise: 10\n"

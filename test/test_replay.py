@@ -215,7 +215,7 @@ def test_packed_contact_groups_are_rosbags_own_cdr():
 
 
 def test_replay_bag_feedforward_is_the_safe_value_of_unconverged_steps(tmp_path):
-    """Finding 2: the output bag's feedforward carries the runner's safe value, as the node."""
+    """The output bag's feedforward carries the runner's safe value, as the node."""
     from rosbags.rosbag2 import Reader
     from bb_friction_ros.bags import friction_typestore
     from bb_friction_ros.replay import _OutputBag
@@ -248,7 +248,7 @@ def test_replay_no_bag_writes_only_csv_summary_and_plots(tmp_path):
 
 
 def test_replay_prints_nonconverged_steps_and_converged_column(tmp_path, capsys):
-    """Issue 13 finding 2 (output half): non-convergence is visible in the CSV and summary."""
+    """Non-convergence is visible in the CSV and summary."""
     from bb_friction_ros.replay import _row_formats, csv_values
     from bb_friction_ros.runner import Prediction
     _, code = _replay_short(tmp_path, extra=("--no-bag",))
@@ -304,7 +304,7 @@ def _states(joint="nut_joint", n=20, position=0.1, velocity=6.0):
 
 
 def test_replay_with_a_misnamed_joint_exits_2_saying_why_and_how(tmp_path, capsys):
-    """Issue 12 / 13 finding 18: zero accepted is an error naming reasons, topics, joints, fix."""
+    """Zero accepted is an error naming reasons, topics, joints, fix."""
     assert _run(tmp_path, _states(joint="nut")) == 2
     err = capsys.readouterr().err
     assert "no nut_state sample was accepted" in err
@@ -330,7 +330,7 @@ def test_replay_with_a_misnamed_joint_exits_2_saying_why_and_how(tmp_path, capsy
      "loads exceed max_axial_load_n = 1000 N"),
 ])
 def test_replay_that_accepts_nothing_exits_2(tmp_path, capsys, case, events, params, reason):
-    """Issue 13 finding 18: every case of 'nothing accepted' is an error with the reason."""
+    """Every case of 'nothing accepted' is an error with the reason."""
     assert _run(tmp_path, events, params=params) == 2, case
     err = capsys.readouterr().err
     assert "no nut_state sample was accepted" in err and reason in err
@@ -338,7 +338,7 @@ def test_replay_that_accepts_nothing_exits_2(tmp_path, capsys, case, events, par
 
 
 def test_replay_refuses_a_negative_max_axial_load_as_the_node_does(tmp_path, capsys):
-    """Issue 13 finding 18: a negative max_axial_load_n is refused up front, by name."""
+    """A negative max_axial_load_n is refused up front, by name."""
     params = "friction_node:\n  ros__parameters:\n    max_axial_load_n: -5.0\n"
     assert _run(tmp_path, _states(), params=params) == 2
     err = capsys.readouterr().err
@@ -346,7 +346,7 @@ def test_replay_refuses_a_negative_max_axial_load_as_the_node_does(tmp_path, cap
 
 
 def test_namespaced_topics_are_used_only_when_named(tmp_path, capsys):
-    """Issue 13 finding 16: /robot/... gives a hint, not a KeyError; the flags select it."""
+    """/robot/... gives a hint, not a KeyError; the flags select it."""
     from bb_friction_ros.bags import Topics
     ns = Topics(nut_state="/robot/nut_state", axial_load="/robot/axial_load")
     assert _run(tmp_path, _states(), topics=ns) == 2
@@ -372,7 +372,7 @@ def test_discrepancy_on_namespaced_topics_is_a_clear_error(tmp_path, capsys):
 
 
 def test_discrepancy_that_accepts_nothing_says_why_and_how(tmp_path, capsys):
-    """Issue 12: discrepancy names the reasons, the bag's topics and joints, and the fix."""
+    """discrepancy names the reasons, the bag's topics and joints, and the fix."""
     write_events(tmp_path / "bag", with_measurement(_states(joint="nut"), [0.2] * 20))
     assert main(["discrepancy", str(tmp_path / "bag"), "--out", str(tmp_path / "d"),
                  "--no-progress", "--no-plots"]) == 2
@@ -412,7 +412,7 @@ def _bag_with_types(path, types):
       "topics of type sensor_msgs/msg/JointState: /axial_load"]),
 ])
 def test_missing_or_mistyped_topics_exit_2_naming_them(tmp_path, capsys, types, needles):
-    """Issue 12 / 13 finding 17: no input topic, wrong types, swapped topics."""
+    """No input topic, wrong types, swapped topics: each named, exit 2."""
     _bag_with_types(tmp_path / "bag", types)
     assert main(["replay", str(tmp_path / "bag"), "--out", str(tmp_path / "out"),
                  "--no-progress"]) == 2
@@ -446,7 +446,7 @@ def test_summary_counts_messages_read_not_metadata(tmp_path):
 
 def test_looping_bag_aligns_measurement_within_each_run(tmp_path):
     """
-    Issue 13 finding 6: a bag played twice with the same stamps.
+    A bag played twice with the same stamps.
 
     Each pass must be compared with its own measurement (0.1 then 0.3 N m here), not every
     row with the last pass's.
@@ -466,7 +466,7 @@ def test_looping_bag_aligns_measurement_within_each_run(tmp_path):
 
 def test_replay_streams_in_bounded_memory(tmp_path, monkeypatch):
     """
-    Issue 12 / 13 finding 26: replay holds no message or prediction after it is answered.
+    Replay holds no message or prediction after it is answered.
 
     Near the end of a 3000-sample bag the Python objects alive are counted: a replay that
     reads the bag into a list first, or keeps its predictions (as replay once did, ~1 kB a
@@ -516,7 +516,7 @@ def test_replay_streams_in_bounded_memory(tmp_path, monkeypatch):
 
 def test_plotted_series_decimates_in_bounded_memory():
     """
-    Finding 26: the plot's min/max envelope is built a buffer at a time.
+    The plot's min/max envelope is built a buffer at a time.
 
     200k rows (12.8 MB of float64) give at most 2 points per bucket, keep every extreme,
     and the decimation holds < 3 MB at its peak (a kept view of each block held them all).
@@ -541,7 +541,7 @@ def test_plotted_series_decimates_in_bounded_memory():
     assert peak < 3_000_000, peak
 
 
-# --- issue 23 #6, #16, #17, #20: real bags with a late stamp, a far-future stamp, reruns ----
+# --- real bags with a late stamp, a far-future stamp, reruns -------------------------------------
 
 def _late_bag(path, late_index=None, late_by_s=0.0105, segment_s=1.5):
     """A 3 s, 1 kHz recording with measured torque; one nut_state stamp moved (header only).
@@ -568,7 +568,7 @@ def _measured_column(out):
 
 
 def test_one_late_nut_state_stamp_keeps_the_measurement(tmp_path):
-    """#6: a stamp 10.5 ms late in a real bag; every row keeps its measured torque.
+    """A stamp 10.5 ms late in a real bag; every row keeps its measured torque.
 
     It used to cut the prediction stream alone: 3/4 of the rows had no measurement and
     rmse_nm covered the first quarter of the recording."""
@@ -597,7 +597,7 @@ def test_one_late_nut_state_stamp_keeps_the_measurement(tmp_path):
 
 
 def test_one_far_future_stamp_does_not_stretch_the_duration(tmp_path):
-    """#20: one header stamp at 2e9 s: the summary keeps the recording's 3 s (log time)."""
+    """One header stamp at 2e9 s: the summary keeps the recording's 3 s (log time)."""
     from bb_friction_ros.replay import replay
     n = _late_bag(tmp_path / "bag", late_index=1000, late_by_s=2.0e9)
     summary = replay(tmp_path / "bag", tmp_path / "out", progress=False, write_bag=False)
@@ -608,7 +608,7 @@ def test_one_far_future_stamp_does_not_stretch_the_duration(tmp_path):
 
 
 def test_no_bag_rerun_removes_the_stale_bag_and_summary(tmp_path):
-    """#17: replay --no-bag into an earlier --out: the old bag/ (and plot) are removed."""
+    """replay --no-bag into an earlier --out: the old bag/ (and plot) are removed."""
     write_events(tmp_path / "in", short_recording(), storage="mcap")
     out = tmp_path / "out"
     assert main(["replay", str(tmp_path / "in"), "--out", str(out), "--no-progress"]) == 0
@@ -633,7 +633,7 @@ def test_replay_refuses_to_overwrite_its_input_bag(tmp_path, capsys):
 
 
 def test_ctrl_c_leaves_no_stale_summary_and_exits_130(tmp_path):
-    """#16: SIGINT during a replay into an earlier --out: no traceback, exit 130, and no
+    """SIGINT during a replay into an earlier --out: no traceback, exit 130, and no
     summary.json of the earlier run beside the partial outputs (it says complete: false)."""
     import os
     import signal
@@ -674,7 +674,7 @@ def test_ctrl_c_leaves_no_stale_summary_and_exits_130(tmp_path):
 @pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
 def test_streamed_replay_gives_run_events_predictions_and_rejections(tmp_path, storage):
     """
-    replay decodes blocks with numpy and checks decoded samples inline (issue 20); the node's
+    replay decodes blocks with numpy and checks decoded samples inline; the node's
     path is run_events (InputAssembler, feed_event), which the live = replay tests compare
     with the node: both must give the same rows, values and rejection counts, on a recording
     with samples before any load, wrong and extra joints, NaN, absurd and NaN loads, stalls.

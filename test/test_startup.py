@@ -1,5 +1,5 @@
 """
-What friction_node's start-up imports (issue 22, item 5): never a timing, only the modules.
+What friction_node's start-up imports: never a timing, only the modules.
 
 Launch to "ready" is measured in bench/bench_startup.py (docs/node_latency.md).  What can be
 tested is what start-up must not load: each of these cost tens to hundreds of milliseconds

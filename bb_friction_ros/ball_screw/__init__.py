@@ -1,1 +1,1 @@
-"""Ball screw friction with ball-to-ball contact (paper Sec. 3; issue #4)."""
+"""Ball screw friction with ball-to-ball contact (paper Sec. 3)."""

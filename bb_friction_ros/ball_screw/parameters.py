@@ -1,5 +1,5 @@
 """
-Validated configuration of the ball screw model (paper Sec. 3, Table 4; issue #4).
+Validated configuration of the ball screw model (paper Sec. 3, Table 4).
 
 Every physical value is a named field with its unit and admissible range.  SI inside; the YAML
 file may use the edge units ``*_deg``, ``*_mm``, ``*_um`` (converted by ``config.from_mapping``).
@@ -255,7 +255,7 @@ class BallScrewConfig:
         # Touching balls sit one B2B separation apart (Eq. 56 on the exact helix); the
         # closed loop is loaded_turns turns long.  Checked here, not first in the model's
         # constructor, so that every entry point (replay, node, screw-sim) refuses it at
-        # load with the key (issue 23 #11: the node and screw-sim crashed with a traceback).
+        # load with the key (the node and screw-sim used to crash with a traceback).
         g, tr = self.geometry, self.track
         separation = b2b_contact_separation(g.ball_radius_m, g.lead_m, g.pitch_radius_m)
         loop = 2.0 * math.pi * tr.loaded_turns

@@ -241,7 +241,7 @@ def step_size_rows(cfg, model, n_steps=None):
 
 def load_range_rows(model, n_balls):
     """
-    Return the model's load range (``config.validity``; issue 13 finding 2) as report rows.
+    Return the model's load range (``config.validity``) as report rows.
 
     Not a paper number: the contact load where the Hertz ellipse or peak pressure reaches
     its bound, and the axial load at which the mean contact load of ``n_balls`` reaches it.

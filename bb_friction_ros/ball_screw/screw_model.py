@@ -131,7 +131,7 @@ class ScrewModel:
         if not sol.converged:
             # Still one ball's state: give each of the n balls a copy, so that a caller's
             # next solve gets arrays of its own size (the compiled kernel does not check
-            # bounds; a one-row state read as n rows was undefined memory, issue 13 #8).
+            # bounds; a one-row state read as n rows was undefined memory).
             sol.x = np.repeat(sol.x, n, axis=0)
             return sol
         x, u = np.repeat(sol.x, n, axis=0), sol.u

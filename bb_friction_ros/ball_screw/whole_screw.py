@@ -416,7 +416,7 @@ class WholeScrew:
         """
         ``_warm_solve_numpy`` in one compiled call (``kernel.warm_solve``), same arithmetic.
 
-        Measured need (issue 20): the Python around the compiled Newton (guesses, active
+        Measured need: the Python around the compiled Newton (guesses, active
         set, argument packing) cost about 90 us of a 320 us step at N = 37.  Bit for bit
         the reference when both run from one numba cache (test_compiled_step says why
         not always).

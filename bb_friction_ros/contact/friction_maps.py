@@ -72,7 +72,7 @@ _BUILD_CHUNK = 1024     # rate directions integrated at once while a table is bu
 _N_INSIDE = 1024        # quadrature rays of a velocity centre inside the contact
 
 # Memory of a table's build, estimated up front so a too-fine map is refused before it
-# starts (issue 13 #20).  Peaks measured with tracemalloc (line maps of 65 536 and 262 144
+# starts.  Peaks measured with tracemalloc (line maps of 65 536 and 262 144
 # nodes: 139 and 154 MB; sphere map 640 x 512: 409 MB), rounded up: one chunk's quadrature
 # temporaries (about 16 arrays of chunk x rays floats) plus a cost per node.
 _CHUNK_BYTES = 16 * 8 * _BUILD_CHUNK * _N_INSIDE
@@ -100,7 +100,7 @@ def _rate_direction_integrals(vx, vy, w, k, n_inside=_N_INSIDE, n_outside=96):
     if vx.size > _BUILD_CHUNK:
         # Every direction is integrated on its own, and the quadrature temporaries cost
         # ~64 kB per direction: a table is built in chunks, so its build needs memory for
-        # the table, not for n x n_inside temporaries (issue 13 #20).  Same numbers.
+        # the table, not for n x n_inside temporaries.  Same numbers.
         return np.concatenate([_rate_direction_integrals(vx[i:i + _BUILD_CHUNK],
                                                          vy[i:i + _BUILD_CHUNK],
                                                          w[i:i + _BUILD_CHUNK], k, n_inside,

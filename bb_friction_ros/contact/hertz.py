@@ -49,7 +49,7 @@ def _ellipse(ratio):
 
     Kept in the table cache (``friction_maps.cached_arrays``): computed with scipy once,
     then read back bit for bit; importing scipy.optimize and scipy.special cost 0.26 s of
-    the node's start-up (issue 22), more than everything else the core imports.
+    the node's start-up (measured), more than everything else the core imports.
     """
     def build():
         from scipy.optimize import brentq

@@ -1,5 +1,5 @@
 """
-Discrepancy workflow (issue #6): where and why measured friction differs from the model.
+Discrepancy workflow: where and why measured friction differs from the model.
 
 ``bb-friction discrepancy BAG_OR_CSV --out DIR`` runs the model over a recording (the replay
 path), locates the residual (``regimes``), selects physically named empirical terms that

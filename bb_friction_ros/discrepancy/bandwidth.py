@@ -4,7 +4,7 @@ The acceleration bandwidth: the cut-off of the filter that derives the nut accel
 JointState and most logs carry no acceleration, so it is the derivative of the nut velocity
 low-passed at a cut-off f_c (``empirical_terms.AccelerationFilter``).  Too low, and the filter
 misses the peaks of short moves: a fit then inflates the inertia J to make up for them, and on
-another recording the inertia torque is wrong exactly where it is large (issue 19: 41 % against
+another recording the inertia torque is wrong exactly where it is large (measured: 41 % against
 the rigid-body model's 12.4 % on a measured servo axis, with a fixed 10 Hz).  Too high, and the
 acceleration is mostly differentiated noise.  Recorders run from 10 Hz to several kHz, so the
 cut-off is chosen per recording (``choose_cutoff``):
@@ -204,7 +204,7 @@ def _fold_mse(cols, r, folds):
     From per-fold cross-products of the columns (views of each fold, no n x k design): each
     training fit is the total minus its fold, so no training copy of the rows is made, and
     the fold's error comes from the same products (a 10-minute 1 kHz recording: 8 cut-offs;
-    issue 19 measured the stacked design at 13 MB per candidate).
+    the stacked design was measured at 13 MB per candidate).
     """
     n = r.size
     edges = np.linspace(0, n, folds + 1).astype(int)

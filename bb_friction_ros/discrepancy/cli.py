@@ -1,5 +1,5 @@
 """
-``bb-friction discrepancy BAG_OR_CSV --out DIR``: the discrepancy workflow (issue #6).
+``bb-friction discrepancy BAG_OR_CSV --out DIR``: the discrepancy workflow.
 
 ``add_discrepancy_parser(subparsers)`` registers it on the main parser's sub-parsers.  Exit
 status: 0 analysed (summary.json says ``found`` or ``none``); 2 the input is unreadable or

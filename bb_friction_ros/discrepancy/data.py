@@ -43,7 +43,7 @@ CSV_PREDICTION = "torque_pred_nm"
 CSV_ACCELERATION = "nut_accel_rad_s2"
 # replay's prediction.csv of a model with fitted terms: the terms' share of torque_pred_nm
 CSV_EMPIRICAL = "torque_empirical_nm"
-# issue 19: most users log the motor current, not the torque; with --torque-constant-nm-per-a
+# most users log the motor current, not the torque; with --torque-constant-nm-per-a
 # K the measured torque is K times it
 CSV_CURRENT = "motor_current_a"
 CURRENT_FLAG = "--torque-constant-nm-per-a"
@@ -57,9 +57,8 @@ EMPIRICAL_MATCH_REL = 1e-3
 # but rows out of order (a shuffled or reversed file).
 MIN_RUN_ROWS = 10
 # Events per call of the replay path: each chunk's predictions are packed into float arrays
-# before the next chunk is read, so a long bag is never in memory as Python objects (issue
-# #13, finding 26: a 10-minute 1 kHz bag peaked at 928 MB as lists of events and
-# predictions).
+# before the next chunk is read, so a long bag is never in memory as Python objects (a
+# 10-minute 1 kHz bag peaked at 928 MB as lists of events and predictions).
 EVENTS_PER_CHUNK = 65536
 
 
@@ -392,7 +391,7 @@ def _csv_header(path):
 
 def measurement_columns(path, torque_constant_nm_per_a):
     """
-    Return the required columns of a CSV: its torque, or its motor current (issue 19).
+    Return the required columns of a CSV: its torque, or its motor current.
 
     ``motor_current_a`` needs ``--torque-constant-nm-per-a``; a constant without the column,
     or a current without the constant, is refused, naming the flag or the column.
@@ -470,7 +469,7 @@ def check_time_order(path, t_s):
 
 def check_time_advances(path, t_s):
     """
-    Refuse a file whose ``t_s`` never advances (issue 23, finding 13).
+    Refuse a file whose ``t_s`` never advances.
 
     Every row at one time has no sample period: no acceleration, no time regimes and no
     thermal time scale can be derived (it crashed in the thermal grid before).
@@ -483,7 +482,7 @@ def check_time_advances(path, t_s):
 
 def check_reused_terms(path, cols, config_path):
     """
-    Refuse a reused prediction that carries terms the ``--config`` does not (issue 23, 8).
+    Refuse a reused prediction that carries terms the ``--config`` does not.
 
     Replay's ``prediction.csv`` of an augmented model has ``torque_empirical_nm``: its
     ``torque_pred_nm`` includes those terms.  ``augmented.yaml`` is written on ``--config``,

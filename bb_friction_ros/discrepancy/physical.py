@@ -1,5 +1,5 @@
 """
-Physical candidates of the discrepancy selection (issue 21): the model's own parameters.
+Physical candidates of the discrepancy selection: the model's own parameters.
 
 When a real screw disagrees with the model, the paper's own parameters are the first
 suspects: the contact-angle deviation theta of the grooves (it drives ball-to-ball contact),
@@ -112,10 +112,11 @@ class PhysicalSettings:
     # bic_threshold are one ambiguous effect: the data cannot tell them apart, and the
     # choice is the prior's.  On such a tie the model's own parameter is kept (as it already
     # was when it led): the twins' documented meaning is the parameter's ("load_dependent:
-    # the model's friction coefficient is off"), the issue names the parameters the first
-    # suspects, and only the parameter is what the node can run.  Its cost is a false alarm
-    # on a recording whose twin is truly empirical and not separable from the parameter
-    # (measured: docs/discrepancy.md, "The tie rule").  False: the better score decides.
+    # the model's friction coefficient is off"), the model's parameters are the first
+    # suspects of a discrepancy, and only the parameter is what the node can run.  Its cost
+    # is a false alarm on a recording whose twin is truly empirical and not separable from
+    # the parameter (measured: docs/discrepancy.md, "The tie rule").  False: the better score
+    # decides.
     prefer_model_parameter_on_tie: bool = True
     # The change of mu or of the preload is smooth in the nut angle (it scales or shifts
     # every contact's force); a 4x coarser step reproduces it within 0.6 % (mu) and 1.8 %

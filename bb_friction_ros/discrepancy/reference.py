@@ -4,7 +4,7 @@ The reference the workflow is measured against: the standard rigid-body drive mo
 T = J alpha + c omega + T_c sign(omega) + T_0, fitted by ordinary least squares to the
 measured torque minus the prediction, with alpha from the workflow's own filter (the same
 cut-off, the same samples).  It is what a servo engineer would fit first.  Every run computes
-it beside the workflow (issue 19): on the held-out part (fitted on the fit part, like the
+it beside the workflow: on the held-out part (fitted on the fit part, like the
 selection) and on the validation recording (fitted on all usable samples of the fit
 recording, like the written model); ``summary.json`` carries both, and the report says so
 first where the workflow is worse.

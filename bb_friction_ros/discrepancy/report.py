@@ -74,7 +74,7 @@ def write_report(out, a, summary, plots=True, validation=None):
     nm = summary.get("noise") or {}
     acc = summary.get("acceleration", {})
     lines = ["# Discrepancy report", ""]
-    # issue 19: where the workflow is worse than the rigid-body reference, say so first
+    # where the workflow is worse than the rigid-body reference, say so first
     for w in summary.get("warnings", []):
         lines += [f"**Warning:** {w}.", ""]
     lines += [f"**Verdict: {summary['verdict']}.** {summary['reason']}.", ""]
@@ -115,7 +115,7 @@ def write_report(out, a, summary, plots=True, validation=None):
     if a.untested:
         lines += ["", "Not tested on this recording:", ""]
         lines += [f"- `{k}`: {v}" for k, v in a.untested.items()]
-    lines += physical.report_lines(a, summary)        # issue 21: the model's own parameters
+    lines += physical.report_lines(a, summary)        # the model's own parameters
     lines += ["", "Selection (best subset per size, fit part):", ""] + _trace_table(a.trace)
     lines += ["", "## Where the model disagreed (all samples, before)", ""]
     flagged = [r for r in a.regions_before if r["significant"]]

@@ -37,7 +37,7 @@ REFINE_LOG_TOLERANCE = 1e-3
 REFINED_PER_SIZE = 3
 # The rigid-body reference's terms (reference.FORMULA: J alpha + c omega + T_c sign omega +
 # T_0) as library terms.  Without a model of the drive they are the textbook floor of every
-# motor torque, so they need only settings.rigid_body_bic_threshold (issue 19: driveNo2's
+# motor torque, so they need only settings.rigid_body_bic_threshold (on driveNo2 the
 # viscous drag, BIC gain 2.6 < 10, was left out and the workflow validated 1.2 % worse than
 # the reference).
 RIGID_BODY_TERMS = ("inertia", "viscous_drag", "seal_drag", "offset")
@@ -376,9 +376,9 @@ def refine(f, x, r, tau=1.0):
 
     One pass, in model order, the others held.  The whole grid, not just the neighbourhood:
     a term that entered first may have stood in for a later one at another value.  Each
-    evaluation is a ``fit_chunked`` (normal equations over row chunks, as the Gram's): issue
-    19 measured the full design and lstsq's copies of it, plus a cache of every grid
-    column, at ~80 MB of the selection's peak on a 10-minute 1 kHz recording.
+    evaluation is a ``fit_chunked`` (normal equations over row chunks, as the Gram's): the
+    full design, lstsq's copies of it and a cache of every grid column were measured at
+    ~80 MB of the selection's peak on a 10-minute 1 kHz recording.
     """
     members = list(f.members)
     for i, (cand, nl) in enumerate(members):
@@ -571,7 +571,7 @@ REFIT_CHUNK_ROWS = 16384
 
 def refit_all(f, x, r):
     """
-    Refit the amplitudes of the chosen model ``f`` on all samples ``x``, ``r`` (issue 19).
+    Refit the amplitudes of the chosen model ``f`` on all samples ``x``, ``r``.
 
     The selection and the held-out score need the split; the chosen terms, with their
     nonlinear values (Stribeck velocity, thermal tau) as selected, are then fitted by least

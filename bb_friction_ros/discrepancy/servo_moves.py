@@ -1,5 +1,5 @@
 """
-Point-to-point moves of a servo axis, sampled at any rate: sharp acceleration edges (issue 19).
+Point-to-point moves of a servo axis, sampled at any rate: sharp acceleration edges.
 
 A servo axis driven with trapezoidal velocity profiles has a piecewise-constant acceleration
 that jumps at the start and the end of every ramp.  That is what a fixed 10 Hz acceleration
@@ -8,7 +8,7 @@ computed exactly (alpha piecewise constant, omega and the angle integrated in cl
 and sampled at ``rate_hz``, as a recorder would, so one drive can be "recorded" at 10 Hz and
 at 2 kHz.  The measured torque is the rigid-body drive J alpha + c omega + T_c sign(omega)
 plus white noise; there is no model of a screw (``torque_pred_nm`` = 0, baseline zero).
-Used by test/discrepancy/test_discrepancy_round2.py and bench/bench_discrepancy.py.
+Used by test/discrepancy/test_bandwidth.py and bench/bench_discrepancy.py.
 """
 
 import dataclasses

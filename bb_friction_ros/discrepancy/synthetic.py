@@ -202,10 +202,11 @@ def named_correctly(analysis, hidden_names):
 
 
 # ------------------------------------------------------------------------------------------
-# Hidden physical parameters (issue 21): the recording is made by the model itself with a
+# Hidden physical parameters: the recording is made by the model itself with a
 # parameter the config given to the workflow does not have.
 
-# The issue's drive: speeds +-0.5-2 rev/s with reversals under 700-1700 N, 20 s.
+# The drive the physical search is tested on: speeds +-0.5-2 rev/s with reversals under
+# 700-1700 N, 20 s.
 PHYSICAL_CYCLE_REV_S = (0.5, -0.5, 1.0, -1.0, 2.0, -2.0, 0.75, -0.75, 1.5, -1.5)
 # Hidden physical ranges (edge units, as the config writes them), drawn uniformly.
 PHYSICAL_RANGES = {
@@ -218,7 +219,7 @@ PHYSICAL_BASE_OVERRIDES = {"errors": {"theta_amplitude_deg": 0.0}}
 
 
 def physical_trajectory(duration_s=20.0, rate_hz=50.0):
-    """Return the DemoRecording of the issue's drive (no effects, no noise)."""
+    """Return the DemoRecording of the physical-search drive (no effects, no noise)."""
     segment = duration_s / len(PHYSICAL_CYCLE_REV_S)
     return DemoRecording(state_rate_hz=rate_hz, load_rate_hz=rate_hz, accel_rad_s2=250.0,
                          segments_rev_s=PHYSICAL_CYCLE_REV_S, segment_duration_s=segment,

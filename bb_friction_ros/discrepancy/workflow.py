@@ -186,14 +186,14 @@ class Analysis:
     accel_filter: dict = None  # the acceleration filter's settings (None: CSV column)
     ambiguities: list = dataclasses.field(default_factory=list)
     rejected_terms: TermSet = None     # selected, but no better on the held-out part
-    # issue 19: the terms as fitted on the fit part (the held-out figures); ``terms`` is
+    # the terms as fitted on the fit part (the held-out figures); ``terms`` is
     # their refit on all usable samples (augmented.yaml, --validate, the node)
     terms_fit_part: TermSet = None
     refit: dict = None                 # summary.json["refit"]
     accel_choice: object = None        # bandwidth.CutoffChoice (None: the CSV's column)
     reference: object = None           # reference.RigidBody fitted on all usable samples
     heldout: dict = None               # summary.json["heldout"]: workflow and reference
-    physical: object = None            # physical.PhysicalSearch (issue 21; None: not run)
+    physical: object = None            # physical.PhysicalSearch (None: not run)
 
     @property
     def verdict(self):
@@ -281,7 +281,7 @@ def analyse(rec, settings, physics=None):
                                                     settings, tuple(untested), fixed,
                                                     noise.tau)
         physical.use_replay_change(search, rec_in, ok)      # what replay will do with it
-    shift = physical.shift_nm(search, n)      # the chosen physical change (issue 21), or 0
+    shift = physical.shift_nm(search, n)      # the chosen physical change, or 0
     ambiguous = ambiguities(ctx, x_fit, (r - shift)[fit_part], settings) if len(terms) else []
     ambiguous += search.identifiability if search is not None else []   # chosen, or a twin
     x = inputs_of(rec)
@@ -337,7 +337,7 @@ def refit_terms(ctx, terms, x, r):
     """
     Return (the terms to write, summary.json["refit"]): the chosen terms refitted on all.
 
-    Issue 19: the model written was fitted on the first 70 % only, and on a measured robot
+    The model written used to be fitted on the first 70 % only, and on a measured robot
     axis it validated worse than a least-squares fit of the same terms.  The refit keeps the
     selected nonlinear values; if an amplitude leaves its physical sign or range on all
     samples, the fit part's terms are kept and the summary says so.
@@ -360,7 +360,7 @@ def reference_rows(rec, x, r, fit_mask, after):
     Return (RigidBody on all usable samples, summary.json["heldout"]).
 
     The held-out row: the workflow's terms and the rigid-body reference, both fitted on the
-    fit part, on the held-out part (issue 19: the same reference row as the validation).
+    fit part, on the held-out part (the same reference row as the validation).
     """
     n_fit = int(np.count_nonzero(fit_mask))      # the fit part is the first samples
     fit_part, hold = slice(0, n_fit), slice(n_fit, None)
@@ -439,7 +439,7 @@ def summary_of(a, info=None):
 
 def reference_summary(a):
     """
-    Return the summary.json keys of issue 19: which fit gives which figure, and the reference.
+    Return the summary.json keys that say which fit gives which figure, and the reference.
 
     ``effects`` are the written terms (refitted on all usable samples); ``effects_fit_part``
     the same terms as fitted on the fit part, which give the held-out figures; ``heldout``
@@ -500,9 +500,9 @@ def write_augmented(path, config_path, terms, zero_baseline=False, physical_sear
 
     Terms already in the base config are kept (the new ones were fitted on top of them).
     With a zero baseline the terms are the whole torque: the file says ``physics: none``, so
-    replay and the node predict with the terms alone (issue 23, finding 3: adding them to the
+    replay and the node predict with the terms alone (adding them to the
     ball-screw model counted the friction twice), and no base term is kept (the zero
-    prediction held none).  A chosen physical effect (issue 21) sets its value in
+    prediction held none).  A chosen physical effect sets its value in
     ``ball_screw:``.
     """
     base, existing = read_model_file(config_path)

@@ -1,7 +1,7 @@
 """
 Compiled Newton solve of a group of touching balls in the linear bearing (numba).
 
-Why compiled (measured, issue 15: the whole two-ball case <= 1 ms warm): the numpy residual
+Why compiled (measured; the target: the whole two-ball case <= 1 ms warm): the numpy residual
 of ``numerical.LinearBearingModel`` costs about 0.2 ms per evaluation for two balls, almost
 all of it the overhead of ~60 small numpy calls, and the whole case needs about 14
 evaluations (two free balls, then the pair).  The same arithmetic as scalar loops takes

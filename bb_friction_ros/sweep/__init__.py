@@ -1,5 +1,5 @@
 """
-Design studies at scale (issue #7): grids and Monte Carlo tolerance studies on Dask.
+Design studies at scale: grids and Monte Carlo tolerance studies on Dask.
 
 ``spec`` reads and validates a sweep specification, ``models`` runs one sample of a model and
 returns its scalar outputs, ``engine`` runs the samples on a Dask distributed cluster and

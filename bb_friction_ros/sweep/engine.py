@@ -144,7 +144,7 @@ def write_atomic(table, path):
     Write a Parquet file so that it is either whole or absent, also after a power cut.
 
     The data are fsynced before the rename (otherwise the rename can reach the disk before
-    the data, leaving a whole-looking name on a torn file; issue 23 #12), and the directory
+    the data, leaving a whole-looking name on a torn file), and the directory
     after it (so that the rename itself survives).
     """
     tmp = path.with_name(path.name + ".tmp")
@@ -161,7 +161,7 @@ def _part_problem(spec, schema, path):
     Return (batch, rows, None) for a whole part file of this spec, else (None, None, why).
 
     ``why`` says what is wrong with this very file: each check sets its own reason, so a
-    torn file is never described with another file's reason (issue 23 #12).
+    torn file is never described with another file's reason.
     """
     try:
         batch = int(path.stem[len(PART_PREFIX):])
@@ -217,7 +217,7 @@ def _sample_range(meta, path):
     Return (min, max) of a part's ``sample`` column: from the Parquet statistics.
 
     With ``num_rows`` equal to the batch size, min and max equal to the batch's bounds
-    rule out a part copied from another batch (issue 13 #14) without reading the data;
+    rule out a part copied from another batch without reading the data;
     ``compact`` checks every id.  A file without statistics is read.
     """
     col = meta.schema.to_arrow_schema().get_field_index("sample")

@@ -12,8 +12,8 @@ def write_text_atomic(path, text):
     """
     Write a text file whole or not at all, as ``engine.write_atomic`` writes a part.
 
-    A summary torn by a power cut would be read back as the sweep's result (issue 23 #12
-    covered the parts; the JSON files beside them were written without fsync).
+    A summary torn by a power cut would be read back as the sweep's result (the parts
+    were already written whole; the JSON files beside them were written without fsync).
     """
     tmp = path.with_name(path.name + ".tmp")
     with open(tmp, "w") as fh:

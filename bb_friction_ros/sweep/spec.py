@@ -45,7 +45,7 @@ DISTRIBUTIONS = {            # kind -> its parameters, in the order the draw use
 }
 
 
-# Memory estimate of the results (issue 13 #20): every column is 8 bytes a row but the
+# Memory estimate of the results: every column is 8 bytes a row but the
 # text ones: the converged flag, the status (offset and ~12 characters) and the reason
 # (offset; null when ok) take about this much a row.
 _ROW_TEXT_BYTES = 24

@@ -102,7 +102,7 @@ def calibrate_amplitude(rows, elastic, target=PAPER_PEAK_SHARE, window_rad=FIT_W
 
 
 # Features that also have a smoothed value, drawn beside the raw one (the raw peak angle jumps
-# between neighbouring local maxima from one amplitude to the next; issue 20 item 6).
+# between neighbouring local maxima from one amplitude to the next).
 SMOOTHED = {"fig21_peak_nut_angle_rad": "fig21_peak_nut_angle_smoothed_rad"}
 
 

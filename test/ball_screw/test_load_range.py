@@ -38,7 +38,7 @@ def test_pressure_bound_binds_when_it_is_lower(model):
 
 @pytest.mark.parametrize("load_n", [20e3, 50e3, -20e3])
 def test_load_beyond_the_range_is_refused_not_solved(config, model, load_n):
-    # Issue 13 finding 2: at 20 kN the solve used to swing from -58 to +8 N m, unflagged
+    # At 20 kN the solve used to swing from -58 to +8 N m, unflagged
     # in the feedforward.  Now: not solved, flagged, zero torque, state kept.
     screw = WholeScrew(config, model)
     ok = screw.step(0.06, 6.0, 1500.0, 0.01)

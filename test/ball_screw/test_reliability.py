@@ -1,4 +1,4 @@
-"""Issue 13 findings 8, 9, 12, 25: screw-pair / screw-sim on bad or hard input."""
+"""screw-pair / screw-sim on bad or hard input."""
 
 import json
 
@@ -23,7 +23,7 @@ def _pair(capsys, *argv):
 
 
 def test_screw_pair_high_load_deterministic(capsys):
-    """Finding 8: 4 runs at 1000 N gave 4 different answers (a one-ball state read as two)."""
+    """4 runs at 1000 N used to give 4 different answers (a one-ball state read as two)."""
     outs = []
     for _ in range(4):
         rc, out = _pair(capsys, "--axial-load-n", "1000")
@@ -38,7 +38,7 @@ def test_screw_pair_high_load_deterministic(capsys):
 
 
 def test_screw_pair_nonconverged_is_null(capsys, tmp_path):
-    """Finding 8: a solve that stops unconverged prints null numbers and exits 1."""
+    """A solve that stops unconverged prints null numbers and exits 1."""
     cfg = tmp_path / "short.yaml"
     cfg.write_text("ball_screw:\n  solver:\n    max_iterations: 1\n")
     rc, out = _pair(capsys, "--config", str(cfg))
@@ -49,7 +49,7 @@ def test_screw_pair_nonconverged_is_null(capsys, tmp_path):
 
 
 def test_cold_solve_failure_keeps_ball_count():
-    """Finding 8's cause: a failed load continuation returned one ball's state for n balls."""
+    """A failed load continuation used to return one ball's state for n balls."""
     model = ScrewModel(load_ball_screw(None, {"solver": {"max_iterations": 1}}))
     free = model.cold_solve(np.array([0.0, 0.03]), 0.0, 0.0, 1.0, 1000.0)
     assert not free.converged
@@ -57,7 +57,7 @@ def test_cold_solve_failure_keeps_ball_count():
 
 
 def test_kernel_refuses_mismatched_arrays():
-    """Finding 8's cause: the unchecked kernel must not be handed arrays of other sizes."""
+    """The unchecked kernel must not be handed arrays of other sizes."""
     model = ScrewModel(load_ball_screw(None))
     solver = model.solver
     if not solver.use_kernel:
@@ -71,7 +71,7 @@ def test_kernel_refuses_mismatched_arrays():
 
 @pytest.mark.parametrize("load", ["0", "-0", "1e-7"])
 def test_screw_pair_zero_load_is_zero_friction(capsys, load):
-    """Finding 9: below solver.min_axial_load_n (no preload) friction is zero, valid JSON."""
+    """Below solver.min_axial_load_n (no preload) friction is zero, valid JSON."""
     rc, out = _pair(capsys, "--axial-load-n", load)
     assert rc == 0
     assert out["converged"] is True
@@ -80,7 +80,7 @@ def test_screw_pair_zero_load_is_zero_friction(capsys, load):
 
 
 def test_screw_sim_steps_keeps_the_step_size(tmp_path, capsys):
-    """Finding 12: --steps N runs N steps of the configured size, as --help says."""
+    """--steps N runs N steps of the configured size, as --help says."""
     import csv
     cfg = load_ball_screw(None)
     dt = cfg.operation.duration_s / cfg.operation.n_steps
@@ -97,7 +97,7 @@ def test_screw_sim_steps_keeps_the_step_size(tmp_path, capsys):
 @pytest.mark.parametrize("spelling, value", [("module_theta1_rad", "0.01"),
                                              ("module_theta1_deg", "0.5")])
 def test_screw_pair_flag_overrides_either_spelling(tmp_path, capsys, spelling, value):
-    """Finding 25: --theta1-deg with a file that sets theta1 in SI was 'given twice'."""
+    """--theta1-deg with a file that sets theta1 in SI used to be 'given twice'."""
     cfg = tmp_path / "pair.yaml"
     cfg.write_text(f"ball_screw:\n  operation:\n    {spelling}: {value}\n"
                    "    module_theta2_deg: 2\n")

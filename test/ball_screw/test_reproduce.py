@@ -1,5 +1,5 @@
 """
-What the paper's ball-screw numbers can and cannot say (issue 20 item 6): Table 5's
+What the paper's ball-screw numbers can and cannot say: Table 5's
 conventions, the theta sense, and the Fig. 21 features that no unstated choice moves.
 
 The reference figures 2.08 / 3.12 N, 36 %/N and 1.29 are those of an independent

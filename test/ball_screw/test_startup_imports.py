@@ -1,8 +1,8 @@
 """
 Building the whole-screw model with warm caches imports no scipy.optimize or scipy.special.
 
-Why: importing them cost 0.26 s of the node's 1.3 s start-up (issue 22, "launch to ready
-<= 1 s"); the Hertz and B2B constants that need them are kept in the table cache beside the
+Why: importing them cost 0.26 s of the node's 1.3 s start-up (the target: launch to
+ready <= 1 s); the Hertz and B2B constants that need them are kept in the table cache beside the
 friction maps (``friction_maps.cached_arrays``).  A child process builds the model (which
 fills the cache if it is empty, importing scipy), then another must build it without scipy.
 scipy.linalg is not checked: numba imports it for its BLAS check when it loads a kernel.

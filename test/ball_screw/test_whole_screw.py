@@ -113,8 +113,9 @@ def test_preloaded_screw_starts_at_zero_load():
     state reached warm by lowering the load to 0 N.
 
     The cold start's load continuation halved towards a zero target without end (each step
-    converges on a preloaded screw): the first step at 0 N never returned (issue 21's
-    preload trials).  The solve count bounds it here so that a regression fails, not hangs.
+    converges on a preloaded screw): the first step at 0 N never returned (seen in the
+    physical search's preload trials).  The solve count bounds it here so that a regression
+    fails, not hangs.
     """
     cfg = load_ball_screw(None, {"errors": {"theta_amplitude_deg": 0.0},
                                  "geometry": {"ball_oversize_um": 1.0}})

@@ -121,7 +121,7 @@ def test_table_cache_roundtrip(tmp_path, monkeypatch):
     assert np.array_equal(first.evaluate(u), second.evaluate(u))
 
 
-# --- issue 13 #20: a too-fine map is refused up front, a fine one is built in bounded memory
+# --- a too-fine map is refused up front, a fine one is built in bounded memory
 
 def test_too_fine_sphere_map_refused_by_name_with_the_figure():
     """4096 x 8192 nodes (inside the field ranges) would need tens of GiB: refused at load."""

@@ -1,14 +1,14 @@
 """
-Issue #10 and the discrepancy findings of issue #13 on inputs a user brings.
+The discrepancy workflow on inputs a user brings: validation, baselines, bad input, noise.
 
 - --validate: DIR/validation/prediction.csv, summary.json["validation"], report; a bad
   validation file exits 2 naming it.
 - --baseline zero for bags; a CSV whose torque_pred_nm is 0 is the same.
 - inertia: the replay (the runner) evaluates it with the causal filter: live = replay.
 - bad input exits 2: non-finite values, a recording too short to derive alpha.
-- finding 11: rows out of time order are refused (reversed crashed before), runs accepted;
-- finding 15: a fit that does not improve the held-out part is verdict "none", with why;
-- finding 24: a CSV with a UTF-8 byte-order mark is read.
+- rows out of time order are refused (reversed crashed before), runs accepted;
+- a fit that does not improve the held-out part is verdict "none", with why;
+- a CSV with a UTF-8 byte-order mark is read.
 - noise: on smooth (low-pass filtered) noise the estimate holds and selection does not call
   every regime significant; stroke_position is named on a trajectory that travels.
 """
@@ -130,7 +130,7 @@ def test_too_short_to_derive_acceleration_exits_2(pair, tmp_path, capsys):
 
 
 def test_rows_out_of_time_order_are_refused(pair, tmp_path, capsys):
-    """Finding 11: shuffled rows gave a wrong verdict, reversed rows crashed."""
+    """Shuffled rows gave a wrong verdict, reversed rows crashed: now both are refused."""
     fit, _, _ = pair
     rng = np.random.default_rng(0)
     for name, order in (("shuffled", rng.permutation(len(fit))),
@@ -154,7 +154,7 @@ def test_consecutive_runs_are_accepted_and_said(pair, tmp_path):
 
 
 def test_csv_with_a_byte_order_mark(pair, tmp_path):
-    """Finding 24: 'lacks column(s) t_s ... has: t_s' from a spreadsheet's BOM."""
+    """A spreadsheet's BOM used to give 'lacks column(s) t_s ... has: t_s'."""
     fit, _, _ = pair
     a = write_csv(tmp_path / "bom.csv", fit, bom=True)
     assert a.read_bytes().startswith(b"\xef\xbb\xbf")
@@ -162,7 +162,7 @@ def test_csv_with_a_byte_order_mark(pair, tmp_path):
 
 
 def test_fit_that_does_not_improve_the_held_out_part_is_none(base):
-    """Finding 15: a drag in the first 70 % only: fitted, but worse on the held-out part."""
+    """A drag in the first 70 % only: fitted, but worse on the held-out part."""
     rng = np.random.default_rng(3)
     rec, _ = synthesize(base, TermSet(), 0.004, rng)
     n = len(rec)
@@ -227,7 +227,7 @@ def _lowpass(noise, rc):
 
 def test_noise_of_smooth_data_holds_and_not_every_regime_is_significant(base):
     """
-    Issue #10: a lag-1 MAD read 10x too little noise on a smooth real recording, and every
+    A lag-1 MAD read 10x too little noise on a smooth real recording, and every
     regime was 'significant'.  Low-passed noise (correlation time ~8 samples) on a known
     effect: the estimate is within 25 % of the true std, the lag-1 one is not, and after the
     fit at most a few regimes stay flagged.

@@ -3,7 +3,7 @@ The workflow run blind on synthetic recordings: model + hidden effects + noise.
 
 Every recording is built on the same cached model prediction (conftest ``base``); the
 workflow subtracts exactly that prediction, so the residual is the hidden effects plus noise.
-Pass criteria (issue #6): the right effect names; on the held-out last 30 % the RMSE drops by
+Pass criteria: the right effect names; on the held-out last 30 % the RMSE drops by
 at least 80 % of its reducible part, reducible = RMSE before - noise (the realised noise RMS
 over the held-out samples); clean data gives "none".
 """
@@ -50,7 +50,7 @@ def test_one_hidden_effect_is_named_and_removed(base, name):
     assert summary["regions"], "a real effect must show in some regime"
     assert summary["effects"][0]["units"]
     if name == "inertia":
-        # issue #10 item 4: the J alpha signature shows in the acceleration regimes before
+        # the J alpha signature shows in the acceleration regimes before
         # the fit, and is gone from them after it
         assert any(r["variable"] == "acceleration" for r in summary["regions"])
         assert not any(r["variable"] == "acceleration" for r in summary["regions_remaining"])
@@ -148,7 +148,7 @@ def test_constant_load_and_partial_revolution_leave_terms_untested(base):
     rec, noise = synthesize(dataclasses.replace(base, recording=flat), terms, NOISE_NM, rng)
     a = analyse(rec, SETTINGS)
     # inertia too: no hidden inertia, so no acceleration lowers the cross-validated error
-    # (issue 19: not identifiable here, said instead of fitted)
+    # (not identifiable here, said instead of fitted)
     assert set(a.untested) == {"load_dependent", "lead_error", "angle_ripple",
                                "stroke_position", "inertia"}
     assert "cross-validated error" in a.untested["inertia"]

@@ -1,5 +1,5 @@
 """
-Physical candidates (issue 21): model runs at trial values, and the selection with them.
+Physical candidates: model runs at trial values, and the selection with them.
 
 The recordings are made by the project's own model (the replay path) with a physical
 parameter that the config given to the workflow does not have, plus noise.
@@ -26,7 +26,7 @@ from bb_friction_ros.node_parameters import NodeParameters
 
 MODEL_RATE_HZ = 50.0
 RUNNER = ph.runner_args(NodeParameters(model_rate_hz=MODEL_RATE_HZ))
-# Issue 21's targets for a hidden parameter
+# The targets set for a hidden parameter
 THETA_TOLERANCE_DEG = 0.3
 MU_RELATIVE_TOLERANCE = 0.05
 
@@ -116,7 +116,7 @@ def analyse_physical(rec, cfg, settings=DiscrepancySettings()):
 
 
 def test_hidden_theta_amplitude_is_named(cache):
-    """The issue's first case: theta 2.5 deg hidden (here 2.2, off the bracket's grid)."""
+    """The first case asked for: theta 2.5 deg hidden (here 2.2, off the bracket's grid)."""
     rec, cfg, _ = case(cache, {"errors": {"theta_amplitude_deg": 2.2}}, seed=3)
     terms, trace, ctx, search = analyse_physical(rec, cfg)
     assert search.chosen is not None and search.chosen.kind.name == "contact_angle_deviation"
@@ -376,8 +376,8 @@ def test_unseen_on_hold_compares_the_held_out_evidence_with_a_parameters_price()
 
 def test_theta_the_held_out_part_cannot_see_is_not_rejected_there(cache):
     """
-    theta 2.154 deg on the issue's 20 s drive: its B2B contacts close on the fit part, hardly
-    on the held-out part (|d|^2/sigma^2 = 1.8 there, against a price of 16.6).  The
+    theta 2.154 deg on the 20 s physical-search drive: its B2B contacts close on the fit
+    part, hardly on the held-out part (|d|^2/sigma^2 = 1.8 there, against a price of 16.6).  The
     held-out RMSE after is not below before (by the last bits: this noise draw), so the
     held-out check rejected a value found within 0.01 deg (bench seeds 6 and 8 lost two
     thetas so).  The held-out part does not judge it now, and says so.

@@ -11,12 +11,12 @@ Per drive: fit on half of the steady-state runs and one start-stop run, validate
 others with ``--validate`` (no refit).  Checked against the data themselves:
 - the augmented model's validation relative error is no worse than the rigid-body
   least-squares reference (J alpha + c omega + T_c sign omega + T_0) that the same run fits
-  on the same samples with the same alpha (issue 19; recomputed here);
+  on the same samples with the same alpha (recomputed here);
 - the drag named (seal_drag, the mean of both directions) is the mean of the measured
   steady-state torque magnitudes within 15 %;
 - the lifting/lowering difference is named (a direction asymmetry or an offset);
 - the noise estimate is within a factor 1.5 of the measured steady-state torque scatter
-  (the lag-1 estimate, 4x too small there, is what issue #10 found);
+  (the lag-1 estimate is 4x too small there);
 - after the fit, fewer than a quarter of the regimes stay significant.
 """
 
@@ -124,7 +124,7 @@ def test_measured_drive_named_and_validated(drives, drive):
     assert list(rows[0]) == ["t_s", "torque_meas_nm", "torque_pred_nm", "torque_augmented_nm"]
     assert len(rows) == v["n"]
     # no worse than the rigid-body least-squares reference, fitted in the same run on the
-    # same samples with the same alpha (issue 19); and the reference is recomputed here
+    # same samples with the same alpha; and the reference is recomputed here
     ref = v["reference_relative_error"]
     # no slack: driveNo2 (the reference's own terms chosen) equals it up to rounding
     assert v["relative_error_after"] <= ref * (1 + SAME_FIT_RTOL), (v["relative_error_after"], ref)

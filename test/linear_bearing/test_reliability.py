@@ -1,4 +1,4 @@
-"""Issue 13 finding 10: the analytical model outside its range says so."""
+"""The analytical model outside its range says so."""
 
 import json
 import math

@@ -62,7 +62,7 @@ def test_linear_mitigate_json(capsys):
 @pytest.mark.parametrize('flag', ['--max-in-flight', '--connect-timeout-s', '--memory-limit-mib'])
 @pytest.mark.parametrize('value', ['0', '-1', 'nan', 'x'])
 def test_run_settings_must_be_positive(flag, value, capsys):
-    """Issue 13 #20, #27, #28: the new settings are refused by their flag when not > 0."""
+    """The run settings are refused by their flag when not > 0."""
     with pytest.raises(SystemExit) as exc:
         parse('sweep', 's.yaml', '--out', 'o', flag, value)
     assert exc.value.code == 2 and flag in capsys.readouterr().err

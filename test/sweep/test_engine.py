@@ -195,10 +195,10 @@ def test_bundled_figs_8_9_grid_reproduces_the_paper(tmp_path, repo_root, client)
     assert np.sign(theta) == -np.sign(rho)
 
 
-# --- issue 13 reliability findings 14, 20, 27, 28
+# --- resume over damaged part files; sweeps too large for memory
 
 def test_resume_over_a_copied_part_file_recomputes_its_batch(tmp_path, linear_mc, client):
-    """#14: a part copied over another batch's name is discarded, said, and computed again."""
+    """A part copied over another batch's name is discarded, said, and computed again."""
     spec = linear_mc(samples=20)
     first = run_sweep(spec, tmp_path, client=client, max_samples=5, max_in_flight=1, **QUIET)
     assert parts(tmp_path).keys() == {'batch-000000.parquet'} and not first.complete
@@ -220,7 +220,7 @@ def _tear(path):
 
 @pytest.mark.parametrize('torn', [0, 2])
 def test_resume_over_a_torn_part_file_recomputes_it(tmp_path, linear_mc, client, torn):
-    """Issue 23 #12: a torn first part crashed the resume (UnboundLocalError 'why'); a torn
+    """A torn first part crashed the resume (UnboundLocalError 'why'); a torn
     later part was described with the previous file's reason.  Now each is "unreadable part
     file", discarded and computed again, and the results equal an uninterrupted run's."""
     spec = linear_mc(samples=20)
@@ -257,7 +257,7 @@ def test_part_file_reasons_are_each_files_own(tmp_path, linear_mc, client):
 
 
 def test_write_atomic_fsyncs_the_data_before_the_rename(tmp_path, linear_mc, monkeypatch):
-    """#12: the data reach the disk before the rename, and the rename after it.
+    """The data reach the disk before the rename, and the rename after it.
 
     fsync has no other observable effect short of cutting the power, so the order of the
     real calls is recorded (they still run)."""
@@ -311,7 +311,7 @@ def test_summary_and_manifest_are_fsynced_before_their_rename(
 
 
 def test_compact_refuses_duplicate_sample_ids(tmp_path, linear_mc, client):
-    """#14: the last guard: results.parquet never counts a sample twice."""
+    """The last guard: results.parquet never counts a sample twice."""
     import pyarrow as pa
     spec = linear_mc(samples=10)
     run_sweep(spec, tmp_path, client=client, **QUIET)
@@ -324,7 +324,7 @@ def test_compact_refuses_duplicate_sample_ids(tmp_path, linear_mc, client):
 
 
 def test_huge_grid_refused_up_front_with_the_figure(tmp_path, linear_mc):
-    """#20: a 10^6 x 10^6 grid is refused before anything runs or is written."""
+    """A 10^6 x 10^6 grid is refused before anything runs or is written."""
     from bb_friction_ros.sweep.spec import spec_from_mapping
     spec = spec_from_mapping({'model': 'linear_pair', 'grid': {
         'theta_deg': {'start': -2.0, 'stop': 2.0, 'num': 1_000_000},
@@ -337,7 +337,7 @@ def test_huge_grid_refused_up_front_with_the_figure(tmp_path, linear_mc):
 
 
 def test_ten_million_samples_fit_the_default_limit(linear_mc):
-    """#20: the check refuses absurd sweeps, not the large ones a user runs (issue 13 #27)."""
+    """The check refuses absurd sweeps, not the large ones a user runs."""
     spec = linear_mc(samples=10_000_000, batch_size=50)
     engine.check_results_memory(spec)
     with pytest.raises(ConfigError, match='--memory-limit-mib'):
@@ -361,7 +361,7 @@ class _SubmitSpy:
 
 
 def test_never_more_than_the_cap_in_flight(tmp_path, linear_mc, client, monkeypatch):
-    """#27: batches are submitted in a bounded window and saved as they finish."""
+    """Batches are submitted in a bounded window and saved as they finish."""
     spec = linear_mc(samples=40)                 # 8 batches
     spy = _SubmitSpy(client)
     original = engine.write_atomic
@@ -383,7 +383,7 @@ def test_default_window_is_per_worker_thread():
 
 
 def test_unreachable_scheduler_short_timeout_said(tmp_path, linear_mc):
-    """#28: the connect timeout is a setting, a few seconds by default, and the error says so."""
+    """The connect timeout is a setting, a few seconds by default, and the error says so."""
     import socket
     import time
     assert engine.CONNECT_TIMEOUT_S <= 5

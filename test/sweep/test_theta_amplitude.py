@@ -61,7 +61,7 @@ def test_whole_screw_sample_records_the_fig21_features():
 
 
 def test_reproduce_imports_no_sweep_engine():
-    """Reproducing the paper needs neither Dask nor Arrow (issue 22), in a clean process."""
+    """Reproducing the paper needs neither Dask nor Arrow (start-up cost), in a clean process."""
     code = ("import sys, bb_friction_ros.reproduce; "
             "print(sorted(m for m in sys.modules if m.split('.')[0] in "
             "('dask', 'distributed', 'pyarrow') or m == 'bb_friction_ros.sweep.engine'))")
