@@ -8,8 +8,8 @@ back-substitution.  One implementation of each lives here.
 
 Why hand-written loops rather than scipy/LAPACK: the systems are 7 x 7 to 9 x 9 (ball screw)
 and 3 g x 3 g (linear bearing) and are solved inside compiled loops thousands of times per
-second; a call out to LAPACK from numba costs more than the elimination itself (measured in
-issue 4 and issue 15: the numpy paths were dominated by such per-call overhead).
+second; a call out to LAPACK from numba costs more than the elimination itself (measured on
+both models: the numpy paths were dominated by such per-call overhead).
 
 Without numba the module still imports: ``jit`` returns the plain Python function and
 ``HAVE_NUMBA`` is False (the models then use their numpy paths, which call nothing here

@@ -49,7 +49,7 @@ _ANGLE_SIGN = (-1.0, 1.0, 1.0, -1.0)
 _N_TRIAL = 12     # step halvings of the line search
 # ``newton``'s "last iterate" guess: from norm r the next Newton iterate's norm is about
 # c r^2; c measured 99 (median) to 287 (largest) over 9800 iterations of the 20 rev/s,
-# 1.8 deg run with the norm between 1e-7 and 1e-5 (issue 20).  A wrong guess costs one
+# 1.8 deg run with the norm between 1e-7 and 1e-5 (measured).  A wrong guess costs one
 # evaluation; 500 keeps 1.7x margin over the largest c.
 _LAST_FACTOR = 5e2
 # The same guess for the first iteration from a warm start, where c is smaller: measured 20
@@ -1186,7 +1186,7 @@ def step_totals(loss, nut_torque, load, forces, speed, active, pair_idx, x, sign
     """
     Sum and scatter what ``WholeScrew._finish`` needs, in one call.
 
-    Measured need (issue 20): the eight numpy calls it replaces cost about 10 us of a step at
+    Measured need: the eight numpy calls it replaces cost about 10 us of a step at
     N = 37.  Returns (sum of the ball-groove losses, sum of the nut torques, sum of the B2B
     force times slip speed, largest contact load, orbit ratio x[:, 2] sign per ball, active
     and force per ring pair, indices of the active candidate pairs).
@@ -1260,7 +1260,7 @@ def advance(azimuth, ratio, d_psi, separation, loop_length, track_start, gap_tol
     expression it replaces, hence exact); their azimuth in the
     loaded track, which starts at ``track_start`` (nut angle + track start [rad]);
     ``theta_centres`` there; the touching pairs (``ring_pairs``).  Returns (azimuth, phi,
-    theta, centres, pair index, rear, front).  Measured need (issue 20): four calls and
+    theta, centres, pair index, rear, front).  Measured need: four calls and
     the numpy between them cost about 15 us of a 230 us step at N = 37.
     """
     n = azimuth.shape[0]
