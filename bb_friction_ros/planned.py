@@ -141,7 +141,8 @@ def planned_feedforward(t_s, nut_angle_rad, nut_velocity_rad_s, axial_load_n, co
     friction = TermSet(x for x in terms.terms if x.name not in NOT_FRICTION)
     runner = ModelRunner(screw, EVERY_ROW_RATE_HZ, friction if len(friction) else None,
                          settings.model_step_deg,
-                         max(NodeParameters().max_model_step_deg, settings.model_step_deg), 0.0)
+                         max(NodeParameters().max_model_step_deg, settings.model_step_deg), 0.0,
+                         mean)
     n = t.size
     out = {c: np.zeros(n) for c in ("ff", "b2g", "b2b", "emp")}
     converged = np.ones(n, dtype=bool)
@@ -150,11 +151,13 @@ def planned_feedforward(t_s, nut_angle_rad, nut_velocity_rad_s, axial_load_n, co
                                        float(load[k])))
         if p is None:
             raise PlannedTrajectoryError(f"row {k}: the model failed ({runner.stats.last_error})")
-        if w[k] != 0.0:
-            b2b = p.torque_b2b_nm if mean is None else mean.at(load[k], w[k])
-            out["ff"][k], out["b2g"][k] = p.torque_total_nm - p.torque_b2b_nm + b2b, \
-                p.torque_b2g_nm
-            out["b2b"][k], out["emp"][k] = b2b, p.torque_empirical_nm
+        if w[k] != 0.0 and mean is None:
+            out["ff"][k], out["b2g"][k] = p.torque_total_nm, p.torque_b2g_nm
+            out["b2b"][k], out["emp"][k] = p.torque_b2b_nm, p.torque_empirical_nm
+        elif w[k] != 0.0:               # the physics averaged over the balls' arrangements
+            out["ff"][k], out["emp"][k] = p.feedforward_nm, p.torque_empirical_nm
+            out["b2b"][k] = mean.at(load[k], w[k])
+            out["b2g"][k] = mean.total_at(load[k], w[k]) - out["b2b"][k]
         converged[k] = p.converged
     breakaway = _breakaway_rows(t, w, settings.breakaway_lead_s)
     # the pre-rolling terms' state along the plan (as the runner's): a start against the
@@ -167,8 +170,11 @@ def planned_feedforward(t_s, nut_angle_rad, nut_velocity_rad_s, axial_load_n, co
         lag = sum(a * (z[k] - direction) for a, z in pre_rolling)
         total, b2g, b2b, emp = breakaway_torque(screw, friction, phi[k], direction, load[k],
                                                 lag)
-        if mean is not None and total != 0.0:
-            total, b2b = total - b2b + mean.at(load[k], direction), mean.at(load[k], direction)
+        if mean is not None and total != 0.0:   # the physics averaged over arrangements
+            physics = mean.total_at(load[k], direction)
+            total = emp + physics
+            b2b = mean.at(load[k], direction)
+            b2g = physics - b2b
         out["ff"][k], out["b2g"][k], out["b2b"][k], out["emp"][k] = total, b2g, b2b, emp
     return PlannedFeedforward(t, out["ff"], out["b2g"], out["b2b"], out["emp"], converged,
                               breakaway, friction.names,

@@ -594,19 +594,21 @@ class ModelRunner:
         """Return the feedforward of the state just stepped at ``sample`` (held if needed)."""
         total, cut = self._with_terms(self._state.torque_total_nm, extra,
                                       sample.nut_velocity_rad_s)
-        return self._feedforward(total, cut, self._state.torque_b2b_nm, sample)
+        return self._feedforward(total, cut, extra, sample)
 
-    def _feedforward(self, total, cut, b2b_nm, sample):
+    def _feedforward(self, total, cut, extra, sample):
         """
-        Return the feedforward of an answered ``total``: its B2B part averaged over arrangements.
+        Return the feedforward of an answered ``total``: its physics averaged over arrangements.
 
-        With ``mean_b2b`` the state's own B2B torque (``b2b_nm``) is replaced by the mean over
-        arrangements at the sample's load; a friction cut to 0 stays 0.
+        With ``mean_b2b`` the state's own torque of the physics is replaced by its mean over
+        the balls' arrangements at the sample's load (ball-to-groove and B2B: the B2B forces
+        change the balls' loads, so both carry the arrangement's ripple), plus the sample's
+        terms ``extra``, under the same friction-sign rule; a friction cut to 0 stays 0.
         """
         if self.mean_b2b is None or cut:
             return total
-        return total - b2b_nm + self.mean_b2b.at(sample.axial_load_n,
-                                                 sample.nut_velocity_rad_s)
+        physics = self.mean_b2b.total_at(sample.axial_load_n, sample.nut_velocity_rad_s)
+        return self._with_terms(physics, extra, sample.nut_velocity_rad_s)[0]
 
     def _with_terms(self, state_nm, extra, nut_velocity_rad_s):
         """
@@ -656,10 +658,10 @@ class ModelRunner:
                 converged = False
         elif converged:         # (an unconverged answer keeps its raw numbers, flagged)
             total, cut = self._with_terms(st.torque_total_nm, extra, direction)
+            ff, held = self._feedforward(total, cut, extra, sample), False
             if cut:             # the parts still sum to the total
                 self.stats.friction_cut += 1
                 extra = total - b2g - b2b
-            ff, held = self._feedforward(total, cut, b2b, sample), False
         else:
             ff, held = 0.0, True
             if self._held is not None and self._held[1] == direction:
@@ -820,7 +822,7 @@ class ProfileSeed:
     # the largest step the copy takes between two points [rad] (max_model_step_deg): steps
     # are cheapest per degree there, and the live node can abandon a profile between them
     max_step_rad: float = math.inf
-    mean_b2b: object = None     # the runner's: the profile's B2B part averaged too
+    mean_b2b: object = None     # the runner's: the profile's physics averaged too
     torque_b2b_nm: float = 0.0  # the step's own B2B torque
 
 
@@ -892,14 +894,14 @@ def look_ahead_profile(seed, horizon_periods=2.0, n_points=3, should_stop=None):
         return float(seed.terms.torque_nm(seed.run_time_s + t_s, angle, w, s.axial_load_n,
                                           seed.nut_accel_rad_s2))
 
-    def b2b(own_nm):
-        """Return what turns a point's own B2B torque into the mean over arrangements."""
+    def physics(own_nm):
+        """Return a point's torque of the physics: its own, or the mean over arrangements."""
         if seed.mean_b2b is None:
-            return 0.0
-        return seed.mean_b2b.at(s.axial_load_n, w) - own_nm
+            return own_nm
+        return seed.mean_b2b.total_at(s.axial_load_n, w)
 
     angles = [s.nut_angle_rad]
-    torques = [seed.torque_total_nm + b2b(seed.torque_b2b_nm) + extra(0.0, s.nut_angle_rad)]
+    torques = [physics(seed.torque_total_nm) + extra(0.0, s.nut_angle_rad)]
     converged = seed.converged
     if w == 0.0 or n_points < 2:
         return angles, torques, converged
@@ -917,7 +919,7 @@ def look_ahead_profile(seed, horizon_periods=2.0, n_points=3, should_stop=None):
             res = screw.step(angle, w, s.axial_load_n, dt / n_sub, substep=j < n_sub)
             converged = converged and bool(res.converged)
         angles.append(angle)
-        torques.append(res.torque_total_nm + b2b(res.torque_b2b_nm) + extra(dt * i, angle))
+        torques.append(physics(res.torque_total_nm) + extra(dt * i, angle))
     return angles, torques, converged
 
 

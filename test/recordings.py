@@ -33,11 +33,11 @@ def averaged_feedforward(pred):
     """
     Return the feedforward of a converged prediction of the bundled model (message or object).
 
-    Its torque with the B2B part replaced by the mean over the balls' arrangements (the
+    Its fitted terms plus the physics' torque averaged over the balls' arrangements (the
     node's default ``b2b_feedforward``).
     """
     from bb_friction_ros.ball_screw.arrangement import mean_b2b
     from bb_friction_ros.model_file import load_ball_screw
     mean = mean_b2b(load_ball_screw(bundled_config("ball_screw.yaml")))
-    return pred.torque_total_nm - pred.torque_b2b_nm + mean.at(pred.axial_load_n,
-                                                               pred.nut_velocity_rad_s)
+    return pred.torque_empirical_nm + mean.total_at(pred.axial_load_n,
+                                                    pred.nut_velocity_rad_s)

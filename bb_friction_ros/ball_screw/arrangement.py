@@ -36,9 +36,9 @@ class ArrangementAverage:
                         "over starts is ~half the mean at 1500 N, ~1 % of the friction)",
                         lo=1, hi=256)
     burn_in_revolutions: float = field(
-        4.0, "rev", "nut revolutions run before the mean is taken: the balls settle within "
-        "a few (the first averages 4-50x the sixth)", lo=0.0, hi=1000.0)
-    revolutions: float = field(4.0, "rev", "nut revolutions the mean is taken over",
+        8.0, "rev", "nut revolutions run before the mean is taken: the balls settle over a "
+        "few (the first averages 4-50x the sixth)", lo=0.0, hi=1000.0)
+    revolutions: float = field(2.0, "rev", "nut revolutions the mean is taken over",
                                lo=0.1, hi=1000.0)
     step_deg: float = field(1.8, "deg", "nut rotation per model step (the node's default)",
                             lo=0.05, hi=30.0)
@@ -55,50 +55,65 @@ def random_arrangement(screw, rng):
 
 
 def _run_mean(screw, azimuth, load_n, velocity, s):
-    """Return the mean B2B torque [N m] of one run after its burn-in (positive direction)."""
+    """Return the mean (total, B2B) torque [N m] of one run after its burn-in (positive)."""
     step = math.radians(s.step_deg)
     n_burn = int(round(s.burn_in_revolutions * 2.0 * math.pi / step))
     n_mean = max(1, int(round(s.revolutions * 2.0 * math.pi / step)))
     screw.reset(0.0)
     screw.azimuth = azimuth
-    total, k = 0.0, 0
+    total = b2b = 0.0
+    k = 0
     for i in range(n_burn + n_mean + 1):
         res = screw.step(i * step, velocity, load_n, step / velocity if i else 0.0)
-        if i > n_burn:
-            total += res.torque_b2b_nm if res.converged else 0.0
+        if i > n_burn and res.converged:
+            total += res.torque_total_nm
+            b2b += res.torque_b2b_nm
             k += 1
-    return total / k
+    return (total / k, b2b / k) if k else (math.nan, math.nan)
 
 
 class MeanB2B:
-    """The mean B2B torque over arrangements at a grid of axial loads; ``at`` interpolates."""
+    """
+    The model's torque averaged over arrangements at a grid of axial loads.
 
-    def __init__(self, loads_n, torque_nm, spread_nm):
-        """Hold the table: |W| [N] ascending, mean B2B torque [N m], its spread over starts."""
+    ``total_at``: the whole friction of the physics (ball-to-groove and B2B: the B2B contact
+    forces change each ball's load, so the ball-to-groove part carries the arrangement's
+    ripple too); ``at``: its B2B part.  Linear in |W| between the grid's loads.
+    """
+
+    def __init__(self, loads_n, torque_nm, spread_nm, total_nm=None):
+        """Hold the table: |W| [N] ascending, mean B2B torque [N m], its spread, mean total."""
         self.loads_n = np.asarray(loads_n, dtype=float)
         self.torque_nm = np.asarray(torque_nm, dtype=float)
         self.spread_nm = np.asarray(spread_nm, dtype=float)
+        self.total_nm = self.torque_nm if total_nm is None else np.asarray(total_nm, float)
+
+    def _signed(self, table, axial_load_n, nut_velocity_rad_s):
+        if nut_velocity_rad_s == 0.0:
+            return 0.0
+        value = float(np.interp(abs(axial_load_n), self.loads_n, table))
+        return math.copysign(value, nut_velocity_rad_s)
 
     def at(self, axial_load_n, nut_velocity_rad_s):
         """Return the mean B2B torque [N m] at a load, with the sign of the velocity."""
-        if nut_velocity_rad_s == 0.0:
-            return 0.0
-        value = float(np.interp(abs(axial_load_n), self.loads_n, self.torque_nm))
-        return math.copysign(value, nut_velocity_rad_s)
+        return self._signed(self.torque_nm, axial_load_n, nut_velocity_rad_s)
+
+    def total_at(self, axial_load_n, nut_velocity_rad_s):
+        """Return the mean torque of the physics [N m] at a load, with the velocity's sign."""
+        return self._signed(self.total_nm, axial_load_n, nut_velocity_rad_s)
 
 
 def mean_b2b(config, settings=ArrangementAverage()):
     """
-    Return the MeanB2B of a ball-screw config (cached on disk, keyed on both).
+    Return the MeanB2B of a ball-screw config (cached on disk, keyed on both), or None.
 
-    Without a contact-angle deviation the balls orbit at one speed and never touch: zeros,
-    without a run.
+    Without a contact-angle deviation the balls orbit at one speed and never touch: nothing
+    depends on their arrangement, the model state's own torque is exact (None, no run).
     """
     w_op = abs(config.operation.axial_load_n) or 1000.0
     loads = np.array([f * w_op for f in settings.load_factors])
     if config.errors.theta_amplitude_rad == 0.0:
-        zero = np.zeros(loads.size)
-        return MeanB2B(loads, zero, zero)
+        return None         # no B2B contact: nothing depends on the arrangement
 
     def build():
         screw = WholeScrew(config)
@@ -106,8 +121,10 @@ def mean_b2b(config, settings=ArrangementAverage()):
         arrangements = [random_arrangement(screw, rng) for _ in range(settings.starts)]
         velocity = abs(config.operation.nut_velocity_rad_s) or 2.0 * math.pi
         means = np.array([[_run_mean(screw, a, load, velocity, settings) for a in arrangements]
-                          for load in loads])
-        return {"loads_n": loads, "torque_nm": means.mean(axis=1),
-                "spread_nm": means.std(axis=1)}
-    table = cached_arrays("mean_b2b", (repr(config), repr(settings)), build)
-    return MeanB2B(table["loads_n"], table["torque_nm"], table["spread_nm"])
+                          for load in loads])         # (loads, starts, (total, b2b))
+        return {"loads_n": loads, "torque_nm": means[:, :, 1].mean(axis=1),
+                "spread_nm": means[:, :, 1].std(axis=1),
+                "total_nm": means[:, :, 0].mean(axis=1)}
+    table = cached_arrays("mean_b2b_total", (repr(config), repr(settings)), build)
+    return MeanB2B(table["loads_n"], table["torque_nm"], table["spread_nm"],
+                   table["total_nm"])
