@@ -51,9 +51,37 @@ def main():
     print(f"\nmean over arrangements ({ArrangementAverage().starts} starts, "
           f"{ArrangementAverage().burn_in_revolutions:g} rev burn-in, "
           f"{ArrangementAverage().revolutions:g} rev mean; built in {took:.1f} s)")
-    print("|W| N   | mean mN m | spread mN m")
-    for load, v, sd in zip(m.loads_n, m.torque_nm, m.spread_nm):
-        print(f"{load:7.0f} | {1e3 * v:9.3f} | {1e3 * sd:9.3f}")
+    print("|W| N   | total mN m | B2B mN m | B2B spread mN m")
+    for load, tot, v, sd in zip(m.loads_n, m.total_nm, m.torque_nm, m.spread_nm):
+        print(f"{load:7.0f} | {1e3 * tot:10.2f} | {1e3 * v:8.3f} | {1e3 * sd:15.3f}")
+    open_loop(cfg, m)
+
+
+def open_loop(cfg, m, load=1500.0, step_deg=1.8):
+    """A run-in screw against a fresh model along the same rotation: the feedforward's error."""
+    step, w = math.radians(step_deg), 2.0 * math.pi
+    per_rev = int(round(360.0 / step_deg))
+
+    def run(screw, first, n):
+        return np.array([(r.torque_total_nm, r.torque_b2g_nm) for r in (
+            screw.step(i * step, w, load, step / w if i else 0.0)
+            for i in range(first, first + n))])
+    plant = WholeScrew(cfg)
+    plant.reset(0.0)
+    run(plant, 0, 10 * per_rev)                     # run in over ten revolutions
+    truth = run(plant, 10 * per_rev, 4 * per_rev)[:, 0]
+    model = WholeScrew(cfg)
+    model.reset(0.0)                                # fresh: evenly spaced
+    own = run(model, 0, 4 * per_rev)
+    print(f"\nopen loop, {load:g} N, four revolutions: a run-in screw (its friction "
+          f"{1e3 * truth.mean():.1f} mN m, spread {1e3 * truth.std():.2f}) against the fresh "
+          "model's feedforward")
+    print("feedforward                         | RMS error mN m")
+    for name, ff in (("model state's own (model)", own[:, 0]),
+                     ("state's ball-to-groove + mean B2B", own[:, 1] + m.at(load, w)),
+                     ("mean over arrangements (averaged)", np.full(len(own),
+                                                               m.total_at(load, w)))):
+        print(f"{name:35s} | {1e3 * np.sqrt(np.mean((ff - truth) ** 2)):.3f}")
 
 
 if __name__ == "__main__":
