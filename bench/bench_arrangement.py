@@ -77,10 +77,10 @@ def open_loop(cfg, m, load=1500.0, step_deg=1.8):
           f"{1e3 * truth.mean():.1f} mN m, spread {1e3 * truth.std():.2f}) against the fresh "
           "model's feedforward")
     print("feedforward                         | RMS error mN m")
+    averaged = np.full(len(own), m.total_at(load, w))
     for name, ff in (("model state's own (model)", own[:, 0]),
                      ("state's ball-to-groove + mean B2B", own[:, 1] + m.at(load, w)),
-                     ("mean over arrangements (averaged)", np.full(len(own),
-                                                               m.total_at(load, w)))):
+                     ("mean over arrangements (averaged)", averaged)):
         print(f"{name:35s} | {1e3 * np.sqrt(np.mean((ff - truth) ** 2)):.3f}")
 
 
