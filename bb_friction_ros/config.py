@@ -34,6 +34,12 @@ class ConfigError(BBFrictionError):
     """A configuration value is missing, unknown or out of range; message names the key."""
 
 
+def check_choice(key, value, choices):
+    """Refuse (ConfigError naming ``key``) a ``value`` that is not one of ``choices``."""
+    if value not in choices:
+        raise ConfigError(f"{key}: must be one of {', '.join(choices)}, got {value!r}")
+
+
 def field(default, unit, doc, lo=None, hi=None, lo_open=False, hi_open=False):
     """Declare a config field with its unit, meaning and admissible range [lo, hi]."""
     return dataclasses.field(default=default, metadata={

@@ -10,7 +10,7 @@ parameter refuses the integer ``100``, an ``integer`` one refuses ``256.0``.  No
 
 import dataclasses
 
-from bb_friction_ros.config import ConfigError, field, load_yaml, validate
+from bb_friction_ros.config import check_choice, ConfigError, field, load_yaml, validate
 
 NODE_NAME = "friction_node"
 
@@ -112,9 +112,7 @@ class NodeParameters:
         if not self.nut_joint.strip():
             raise ConfigError(f"{path}.nut_joint: must be a non-empty joint name, got "
                               f"{self.nut_joint!r}")
-        if self.b2b_feedforward not in B2B_FEEDFORWARDS:
-            raise ConfigError(f"{path}.b2b_feedforward: must be one of "
-                              f"{', '.join(B2B_FEEDFORWARDS)}, got {self.b2b_feedforward!r}")
+        check_choice(f"{path}.b2b_feedforward", self.b2b_feedforward, B2B_FEEDFORWARDS)
         if self.max_model_step_deg < self.model_step_deg:
             raise ConfigError(f"{path}.max_model_step_deg: must be >= model_step_deg = "
                               f"{self.model_step_deg:g} deg, got {self.max_model_step_deg:g}")

@@ -24,7 +24,7 @@ import math
 import numpy as np
 
 from bb_friction_ros.ball_screw.arrangement import mean_b2b
-from bb_friction_ros.config import BBFrictionError, ConfigError, field, from_mapping
+from bb_friction_ros.config import BBFrictionError, check_choice, field, from_mapping
 from bb_friction_ros.empirical_terms import dahl_state, NOT_FRICTION, TermSet
 from bb_friction_ros.model_file import NoPhysics
 from bb_friction_ros.node_parameters import B2B_AVERAGED, B2B_FEEDFORWARDS, NodeParameters
@@ -61,9 +61,7 @@ class PlannedSettings:
 
     def check(self, path):
         """Refuse an unknown ``b2b_feedforward``, naming it."""
-        if self.b2b_feedforward not in B2B_FEEDFORWARDS:
-            raise ConfigError(f"{path}.b2b_feedforward: must be one of "
-                              f"{', '.join(B2B_FEEDFORWARDS)}, got {self.b2b_feedforward!r}")
+        check_choice(f"{path}.b2b_feedforward", self.b2b_feedforward, B2B_FEEDFORWARDS)
 
 
 def load_planned_settings(mapping, path="feedforward"):

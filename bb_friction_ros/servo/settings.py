@@ -25,7 +25,7 @@ import dataclasses
 import math
 from typing import Optional
 
-from bb_friction_ros.config import ConfigError, field, from_mapping, load_yaml
+from bb_friction_ros.config import check_choice, ConfigError, field, from_mapping, load_yaml
 from bb_friction_ros.node_parameters import B2B_AVERAGED, B2B_FEEDFORWARDS
 
 LOOP = "loop"
@@ -108,12 +108,8 @@ class PlantSettings:
 
     def check(self, path):
         """Refuse an unknown friction_update or ball_state, naming the key."""
-        if self.friction_update not in FRICTION_UPDATES:
-            raise ConfigError(f"{path}.friction_update: must be one of "
-                              f"{', '.join(FRICTION_UPDATES)}, got {self.friction_update!r}")
-        if self.ball_state not in BALL_STATES:
-            raise ConfigError(f"{path}.ball_state: must be one of {', '.join(BALL_STATES)}, "
-                              f"got {self.ball_state!r}")
+        check_choice(f"{path}.friction_update", self.friction_update, FRICTION_UPDATES)
+        check_choice(f"{path}.ball_state", self.ball_state, BALL_STATES)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -129,12 +125,8 @@ class ModelSettings:
 
     def check(self, path):
         """Refuse an unknown ball_state or b2b_feedforward, naming the key."""
-        if self.ball_state not in BALL_STATES:
-            raise ConfigError(f"{path}.ball_state: must be one of {', '.join(BALL_STATES)}, "
-                              f"got {self.ball_state!r}")
-        if self.b2b_feedforward not in B2B_FEEDFORWARDS:
-            raise ConfigError(f"{path}.b2b_feedforward: must be one of "
-                              f"{', '.join(B2B_FEEDFORWARDS)}, got {self.b2b_feedforward!r}")
+        check_choice(f"{path}.ball_state", self.ball_state, BALL_STATES)
+        check_choice(f"{path}.b2b_feedforward", self.b2b_feedforward, B2B_FEEDFORWARDS)
 
 
 @dataclasses.dataclass(frozen=True)
