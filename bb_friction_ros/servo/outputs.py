@@ -155,14 +155,12 @@ def write_report(path, summary):
 
 def write_plots(out, reference, results, lead_m):
     """Write following_error.png, reversals.png and (circle) ballbar.png."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure     # the caller's backend and pyplot stay untouched
     from bb_friction_ros.servo.metrics import reversal_indices, REVERSAL_WINDOW_S
     t = reference.t_s
     leads = reference.leads_m or (lead_m,)
-    fig, axes = plt.subplots(len(reference.axes), 1, figsize=(10, 3.2 * len(reference.axes)),
-                             squeeze=False, sharex=True)
+    fig = Figure(figsize=(10, 3.2 * len(reference.axes)))
+    axes = fig.subplots(len(reference.axes), 1, squeeze=False, sharex=True)
     for i, axis in enumerate(reference.axes):
         ax = axes[i][0]
         for name, runs in results.items():
@@ -174,11 +172,11 @@ def write_plots(out, reference, results, lead_m):
     axes[-1][0].set_xlabel("t [s]")
     fig.tight_layout()
     fig.savefig(out / "following_error.png", dpi=110)
-    plt.close(fig)
     runs0 = next(iter(results.values()))[0]
     rev = reversal_indices(np.gradient(runs0.ref_rad, t))[:4]
     if rev.size:
-        fig, axes = plt.subplots(1, rev.size, figsize=(3.2 * rev.size, 3.2), squeeze=False)
+        fig = Figure(figsize=(3.2 * rev.size, 3.2))
+        axes = fig.subplots(1, rev.size, squeeze=False)
         for j, i in enumerate(rev):
             ax = axes[0][j]
             w = (t >= t[i] - 0.2 * REVERSAL_WINDOW_S) & (t <= t[i] + 2 * REVERSAL_WINDOW_S)
@@ -192,7 +190,6 @@ def write_plots(out, reference, results, lead_m):
         axes[0][0].legend(fontsize=6)
         fig.tight_layout()
         fig.savefig(out / "reversals.png", dpi=110)
-        plt.close(fig)
     if reference.kind == "circle":
         ballbar_plot(out / "ballbar.png", reference, results)
 
@@ -213,9 +210,7 @@ def ballbar_plot(path, reference, results):
     radius, the division chosen by ``ballbar_division_um``; beyond two divisions the path is
     drawn at the plot's edge.
     """
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure     # the caller's backend and pyplot stay untouched
     from bb_friction_ros.servo.metrics import feed_mask
     t = reference.t_s
     paths = {}
@@ -225,7 +220,7 @@ def ballbar_plot(path, reference, results):
         paths[name] = (np.arctan2(y[feed], x[feed]),
                        (np.hypot(x[feed], y[feed]) - reference.radius_m) * 1e6)
     div = ballbar_division_um(max(float(np.abs(dr).max()) for _, dr in paths.values()))
-    fig = plt.figure(figsize=(6.5, 6.8))
+    fig = Figure(figsize=(6.5, 6.8))
     ax = fig.add_subplot(projection="polar")
     for name, (theta, dr) in paths.items():
         ax.plot(theta, np.clip(2.0 + dr / div, 0.0, 4.0), lw=0.9, label=name)
@@ -240,4 +235,3 @@ def ballbar_plot(path, reference, results):
     ax.legend(fontsize=6, loc="upper center", bbox_to_anchor=(0.5, -0.06), ncol=3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
