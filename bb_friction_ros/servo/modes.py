@@ -16,6 +16,9 @@ model[_commanded]              the product's model, as the node answers (its saf
 truth                          the plant's own friction at the measured state: the floor of a
                                measured-state feedforward
 node                           the real friction_node over DDS (servo.node_mode)
+planned                        ``bb-friction feedforward`` of the reference (planned.py): the
+                               model stepped along the commanded angle, breakaway before a
+                               planned start, pre-rolling from the plan; played back by time
 =============================  ===============================================================
 
 Safety gate (every mode): a feedforward whose sign is not its own motion's direction (the
@@ -27,6 +30,8 @@ a commanded feedforward may lead a reversal by design).
 
 import math
 
+import numpy as np
+
 from bb_friction_ros.servo.baselines import LuGreState
 from bb_friction_ros.node_parameters import B2B_AVERAGED
 from bb_friction_ros.runner import InputSample, ModelRunner
@@ -35,7 +40,7 @@ MEASURED = "measured"
 COMMANDED = "commanded"
 BASE_MODES = ("none", "coulomb_viscous", "coulomb_viscous_commanded", "lugre",
               "lugre_commanded", "model", "model_commanded", "truth")
-ALL_MODES = BASE_MODES + ("node",)
+ALL_MODES = BASE_MODES + ("node", "planned")
 
 
 def timing_of(name):
@@ -120,6 +125,44 @@ class ModelMode(Mode):
             self.errors += 1
             return 0.0
         return p.feedforward_nm
+
+
+class PlannedMode(Mode):
+    """
+    The planned feedforward of the whole reference, computed ahead, played back by time.
+
+    Its gate is the planned motion's: a row moving in the plan carries friction of the
+    plan's direction, a standing row only the breakaway of a coming start (``breakaway``),
+    in that start's direction, and 0 otherwise.
+    """
+
+    def __init__(self, name, t_s, ff, w_ref, breakaway):
+        """Hold the plan's rows: times, feedforward, planned velocity, breakaway rows."""
+        super().__init__(name)
+        self.timing = COMMANDED
+        self.t_s, self.ff, self.w_ref, self.breakaway = t_s, ff, w_ref, breakaway
+        # the direction of the next planned motion at each row (0: none comes)
+        ahead = np.zeros(w_ref.size)
+        nxt = 0.0
+        for k in range(w_ref.size - 1, -1, -1):
+            if w_ref[k] != 0.0:
+                nxt = 1.0 if w_ref[k] > 0.0 else -1.0
+            ahead[k] = nxt
+        self.ahead = ahead
+
+    def value(self, t_s, meas_angle, meas_velocity, ref_angle, ref_velocity, load_n,
+              plant_velocity):
+        """Return the row's planned feedforward [N m], gated by the plan (class docstring)."""
+        k = min(int(np.searchsorted(self.t_s, t_s)), self.t_s.size - 1)
+        ff = float(self.ff[k])
+        direction = np.sign(self.w_ref[k]) if self.w_ref[k] != 0.0 else \
+            (self.ahead[k] if self.breakaway[k] else 0.0)
+        if ff != 0.0 and (direction == 0.0 or (ff > 0.0) != (direction > 0.0)):
+            self.wrong_sign += 1
+            ff = 0.0
+        if ff != 0.0 and plant_velocity != 0.0 and (ff > 0.0) != (plant_velocity > 0.0):
+            self.against_motion += 1
+        return ff
 
 
 class TruthMode(Mode):

@@ -109,10 +109,12 @@ class Setup:
             run_in(law.torque, 0.0, angle0, load0, ps.run_in_revolutions, ps.run_in_speed_rad_s)
         return law
 
-    def mode(self, name, angle0, load0, axis_index=0):
-        """Return the Mode object ``name`` for one axis."""
+    def mode(self, name, angle0, load0, axis_index=0, reference=None, axis=None):
+        """Return the Mode object ``name`` for one axis (``planned``: of its reference)."""
         if name == "none":
             return modes_mod.Mode("none")
+        if name == "planned":
+            return self.planned_mode(reference, axis, axis_index)
         if name.startswith("coulomb_viscous"):
             return modes_mod.CoulombViscousMode(name, self.fits["coulomb_viscous"])
         if name.startswith("lugre"):
@@ -132,6 +134,19 @@ class Setup:
                                        self.settings.plant.presliding_rad)
         raise ConfigError(f"--modes: unknown mode {name!r} (known: "
                           f"{', '.join(modes_mod.ALL_MODES)})")
+
+    def planned_mode(self, reference, axis, axis_index):
+        """Return the ``planned`` mode: the reference's planned feedforward, computed ahead."""
+        from bb_friction_ros.planned import planned_feedforward, PlannedSettings
+        path = self.model_path if axis_index == 0 or not self.model_path_y \
+            else self.model_path_y
+        t = reference.t_s
+        w_ref = axis.ref_velocity(t)
+        ms = self.settings.model
+        ff = planned_feedforward(t, axis.ref_rad, w_ref, self.loads(reference, axis), path,
+                                 PlannedSettings(model_step_deg=ms.model_step_deg,
+                                                 b2b_feedforward=ms.b2b_feedforward))
+        return modes_mod.PlannedMode("planned", t, ff.torque_ff_nm, w_ref, ff.breakaway)
 
     def loads(self, reference, axis):
         """Return the axial load of every sample [N]."""
@@ -194,7 +209,7 @@ class Setup:
             load = self.loads(reference, axis)
             angle0 = float(axis.meas_rad[0]) if axis.meas_rad is not None \
                 else float(axis.ref_rad[0])
-            mode = self.mode(name, angle0, float(load[0]), i)
+            mode = self.mode(name, angle0, float(load[0]), i, reference, axis)
             try:
                 runs.append(self.simulate_axis(reference, axis, mode, axis_index=i))
             finally:

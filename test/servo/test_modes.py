@@ -116,3 +116,17 @@ def test_truth_of_a_presliding_plant_builds_up_after_a_reversal():
     assert back[0] == 0.0 and truth.wrong_sign > 0      # the old sign is never fed forward
     assert back[-1] == pytest.approx(-0.2, rel=1e-3)     # 7.9 travels later: fully built
     assert all(b >= a for a, b in zip(back[5:], back[4:-1]))   # monotonic build-up
+
+
+def test_planned_mode_plays_the_planned_feedforward_back_gated_by_the_plan():
+    """A breakaway row before a planned start passes the gate; friction against the plan not."""
+    import numpy as np
+    from bb_friction_ros.servo.modes import PlannedMode
+    t = np.arange(6) * 1e-3
+    w = np.array([0.0, 0.0, 0.0, 1.0, 1.0, 0.0])
+    ff = np.array([0.0, 0.0, 0.2, 0.21, -0.1, 0.3])
+    breakaway = np.array([False, False, True, False, False, False])
+    m = PlannedMode("planned", t, ff, w, breakaway)
+    got = [m.value(t[k], 0.0, 0.0, 0.0, w[k], 1000.0, 0.0) for k in range(6)]
+    assert got == [0.0, 0.0, 0.2, 0.21, 0.0, 0.0]
+    assert m.wrong_sign == 2 and m.timing == "commanded"
