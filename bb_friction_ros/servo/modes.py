@@ -71,8 +71,15 @@ class Mode:
             angle, w = ref_angle, ref_velocity
         else:
             angle, w = meas_angle, meas_velocity
-        ff = self.raw(t_s, angle, w, load_n)
-        if ff != 0.0 and (w == 0.0 or (ff > 0.0) != (w > 0.0)):
+        return self._gated(self.raw(t_s, angle, w, load_n), w, plant_velocity)
+
+    def _gated(self, ff, direction, plant_velocity):
+        """
+        Return ``ff`` through the safety gate (module docstring), counting what it saw.
+
+        ``direction``: the motion ``ff`` belongs to (0: none, so only 0 N m passes).
+        """
+        if ff != 0.0 and (direction == 0.0 or (ff > 0.0) != (direction > 0.0)):
             self.wrong_sign += 1
             ff = 0.0
         if ff != 0.0 and plant_velocity != 0.0 and (ff > 0.0) != (plant_velocity > 0.0):
@@ -157,12 +164,7 @@ class PlannedMode(Mode):
         ff = float(self.ff[k])
         direction = np.sign(self.w_ref[k]) if self.w_ref[k] != 0.0 else \
             (self.ahead[k] if self.breakaway[k] else 0.0)
-        if ff != 0.0 and (direction == 0.0 or (ff > 0.0) != (direction > 0.0)):
-            self.wrong_sign += 1
-            ff = 0.0
-        if ff != 0.0 and plant_velocity != 0.0 and (ff > 0.0) != (plant_velocity > 0.0):
-            self.against_motion += 1
-        return ff
+        return self._gated(ff, direction, plant_velocity)
 
 
 class TruthMode(Mode):
