@@ -50,9 +50,37 @@ from bb_friction_ros.runner import InputSample, ModelRunner, RunnerStats
 BREAKAWAY_PROBE_RAD_S = 1e-9
 
 
-def friction_terms(terms):
-    """Return the TermSet without its ``inertia`` terms (J is the plant's, not friction)."""
-    return TermSet(t for t in terms.terms if t.name != "inertia")
+def friction_terms(terms, drop=()):
+    """
+    Return the TermSet without its ``inertia`` terms (J is the plant's, not friction).
+
+    Terms named in ``drop`` go too (``pre_rolling`` where the plant's own Dahl element
+    carries the pre-sliding: ``plant_presliding_rad``).
+    """
+    return TermSet(t for t in terms.terms if t.name != "inertia" and t.name not in drop)
+
+
+def model_presliding_rad(path):
+    """Return the travel [rad] of a model file's ``pre_rolling`` term (0 without one)."""
+    _, terms = load_model_file(path)
+    return float(max((t.params.travel_rad for t in terms.terms if t.name == "pre_rolling"),
+                     default=0.0))
+
+
+def plant_presliding_rad(settings_presliding_rad, model_path):
+    """
+    Return the plant's pre-sliding travel [rad]: ``plant.presliding_rad``, else the model's.
+
+    A model file calibrated on a recording with reversals carries its pre-sliding as a
+    ``pre_rolling`` term (a Dahl element on T_p).  As a plant it is simulated by the plant's
+    Dahl element of that travel on the whole friction (module docstring): the friction then
+    holds the axis like a soft spring at rest, as the recorded axis did, where the
+    term's own answer is cut to 0 until it opposes the motion again (a feedforward's safety
+    rule, not a plant's physics) and the stick switch would flip it at once.
+    """
+    if settings_presliding_rad > 0.0:
+        return float(settings_presliding_rad)
+    return model_presliding_rad(model_path)
 
 
 def model_inertia(path):
@@ -92,11 +120,11 @@ class ModelFriction:
     behind).  ``physics: none`` files run their terms alone, as replay runs them.
     """
 
-    def __init__(self, path, rate_hz, step_deg):
-        """Build the runner of model file ``path`` without its inertia terms."""
+    def __init__(self, path, rate_hz, step_deg, drop=()):
+        """Build the runner of model file ``path`` without its inertia terms (and ``drop``)."""
         from bb_friction_ros.ball_screw.whole_screw import WholeScrew
         cfg, terms = load_model_file(path)
-        self.terms = friction_terms(terms)
+        self.terms = friction_terms(terms, drop)
         screw = NoPhysics() if physics_of(path) == "none" else WholeScrew(cfg)
         self.runner = ModelRunner(screw, rate_hz, self.terms if len(self.terms) else None,
                                   step_deg, max(step_deg, 14.4), step_after_answer_fraction=0.0)
@@ -166,13 +194,18 @@ class Plant:
     [N m] it applied at the period's start (the held torque when it stuck).
     """
 
-    def __init__(self, law, inertia_kg_m2, settings, angle0_rad):
-        """Start at rest at ``angle0_rad``; ``settings`` is a PlantSettings."""
+    def __init__(self, law, inertia_kg_m2, settings, angle0_rad, presliding_rad=None):
+        """
+        Start at rest at ``angle0_rad``; ``settings`` is a PlantSettings.
+
+        ``presliding_rad``: the Dahl travel (``plant_presliding_rad``); None takes
+        ``settings.presliding_rad``.
+        """
         self.law = law
         self.j = float(inertia_kg_m2)
         self.n_sub = settings.substeps
         self.every_substep = settings.friction_update == "substep"
-        self.phi_d = settings.presliding_rad
+        self.phi_d = settings.presliding_rad if presliding_rad is None else presliding_rad
         self.angle = float(angle0_rad)
         self.velocity = 0.0
         self.s = 0.0                # Dahl state (pre-sliding plants)

@@ -26,7 +26,8 @@ from bb_friction_ros.model_file import load_model_file
 from bb_friction_ros.runner import InputSample
 from bb_friction_ros.servo import baselines, modes as modes_mod
 from bb_friction_ros.servo.controller import Cascade
-from bb_friction_ros.servo.plant import (lead_of, ModelFriction, Plant, plant_inertia, quantise,
+from bb_friction_ros.servo.plant import (lead_of, ModelFriction, Plant, plant_inertia,
+                                         plant_presliding_rad, quantise,
                                          RigidBodyFriction)
 from bb_friction_ros.servo.reference import _moves, Axis, load_reference, Reference
 from bb_friction_ros.discrepancy.servo_moves import sample_moves
@@ -90,6 +91,8 @@ class Setup:
                                      settings.source or "LOOP.yaml")
         self.lead_m = lead_of(self.model_path)
         self.default_load = float(load_model_file(self.plant_path)[0].operation.axial_load_n)
+        self.presliding_rad = [plant_presliding_rad(settings.plant.presliding_rad, p)
+                               for p in (self.plant_path, self.model_path_y or self.plant_path)]
         self.fits = {}
 
     # --- the parts of a run ---------------------------------------------------------------
@@ -99,8 +102,9 @@ class Setup:
         ps = self.settings.plant
         path = self.plant_path if axis_index == 0 or not self.model_path_y \
             else self.model_path_y
-        law = ModelFriction(path, ps.model_rate_hz, ps.model_step_deg)
-        return law
+        # the plant's Dahl element carries the pre-sliding: the term would count it twice
+        drop = ("pre_rolling",) if self.presliding_rad[axis_index] > 0.0 else ()
+        return ModelFriction(path, ps.model_rate_hz, ps.model_step_deg, drop)
 
     def prepare_law(self, law, angle0, load0):
         """Run a plant law in when the plant's ball state is ``run_in``."""
@@ -131,7 +135,7 @@ class Setup:
         if name == "truth":
             return modes_mod.TruthMode(name, self.prepare_law(self.plant_law(axis_index),
                                                               angle0, load0),
-                                       self.settings.plant.presliding_rad)
+                                       self.presliding_rad[axis_index])
         raise ConfigError(f"--modes: unknown mode {name!r} (known: "
                           f"{', '.join(modes_mod.ALL_MODES)})")
 
@@ -168,9 +172,12 @@ class Setup:
         offset = axis.command_offset_nm if axis.command_offset_nm is not None \
             else np.zeros(t.size)
         angle0 = float(axis.meas_rad[0]) if axis.meas_rad is not None else float(axis.ref_rad[0])
+        # a law given here (the rigid-body reference) has no pre-sliding of its own
+        presliding = None
         if law is None:
             law = self.prepare_law(self.plant_law(axis_index), angle0, float(load[0]))
-        plant = Plant(law, j, self.settings.plant, angle0)
+            presliding = self.presliding_rad[axis_index]
+        plant = Plant(law, j, self.settings.plant, angle0, presliding)
         ctl = Cascade(loop, j)
         w_ref = axis.ref_velocity(t)
         a_ref = axis.ref_accel(t)

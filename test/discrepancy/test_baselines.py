@@ -109,3 +109,21 @@ def test_reused_prediction_with_terms_needs_their_config(base, tmp_path, capsys)
     assert run_cli([pred, "--config", aug, "--out", tmp_path / "kept", "--no-plots"]) == 0
     kept = yaml.safe_load((tmp_path / "kept" / "augmented.yaml").read_text())
     assert kept["empirical_terms"][:2] == yaml.safe_load(aug.read_text())["empirical_terms"]
+
+
+def test_without_a_model_stribeck_and_pre_rolling_enter_only_with_the_coulomb_level():
+    """
+    Without a model of the drive a Stribeck excess or a pre-rolling build-up shapes
+    seal_drag's Coulomb level and is tried only with it; with a model (the physics carries
+    the Coulomb level) every subset is tried.
+    """
+    from bb_friction_ros.discrepancy.selection import admissible, Candidate, RIGID_BODY_TERMS
+
+    def subset(*names):
+        return tuple(Candidate(n, ()) for n in names)
+
+    for shaper in ("stribeck", "pre_rolling"):
+        assert not admissible(subset(shaper, "viscous_drag"), RIGID_BODY_TERMS)
+        assert admissible(subset(shaper, "seal_drag"), RIGID_BODY_TERMS)
+        assert admissible(subset(shaper, "viscous_drag"), ())
+    assert admissible(subset("viscous_drag", "offset"), RIGID_BODY_TERMS)

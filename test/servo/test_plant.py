@@ -101,3 +101,44 @@ def test_holding_the_model_per_servo_sample_converges_to_the_substep_run(axis_mo
            for key in ((8, "sample"), (2, "substep"), (8, "substep"))}
     assert err[(8, "substep")] < 0.25           # the default's stated bound [um]
     assert err[(8, "substep")] < err[(2, "substep")] < err[(8, "sample")] < 1.0
+
+
+def test_a_model_files_pre_rolling_term_becomes_the_plants_dahl_element(
+        axis_model, tmp_path, loop_file):
+    """
+    A calibrated model's pre-sliding is simulated as the plant's Dahl element of the term's
+    travel, without the term itself (counted once); ``plant.presliding_rad`` takes
+    precedence; a law given to the run (the rigid-body reference) gets no Dahl element.
+    """
+    import yaml
+    from bb_friction_ros.servo.modes import Mode
+    from bb_friction_ros.servo.plant import model_presliding_rad, plant_presliding_rad
+    from bb_friction_ros.servo.reference import load_reference
+    from bb_friction_ros.servo.run import Setup
+    from bb_friction_ros.servo.settings import load_settings
+    data = yaml.safe_load(open(axis_model))
+    data["empirical_terms"].append({"name": "pre_rolling",
+                                    "params": {"torque_nm": 0.05, "travel_rad": 0.004}})
+    model = tmp_path / "with_pre_rolling.yaml"
+    model.write_text(yaml.safe_dump(data))
+    assert model_presliding_rad(axis_model) == 0.0
+    assert model_presliding_rad(model) == 0.004
+    assert plant_presliding_rad(0.0, model) == 0.004
+    assert plant_presliding_rad(0.002, model) == 0.002
+    s = load_settings(loop_file)
+    setup = Setup(s, model)
+    assert setup.presliding_rad[0] == 0.004
+    law = setup.plant_law()
+    assert "pre_rolling" not in [t.name for t in law.terms.terms]
+    assert [t.name for t in law.terms.terms] == \
+        [t.name for t in Setup(s, axis_model).plant_law().terms.terms]
+    spec = tmp_path / "spec.yaml"
+    spec.write_text("reference:\n  kind: reversal\n  speeds_rev_s: [1.0]\n  stroke_rev: 0.25\n"
+                    "  accel_rev_s2: 20.0\n  axial_load_n: 1500.0\n")
+    ref = load_reference(spec, 1000.0, [0.02])
+    run = setup.simulate_axis(ref, ref.axes[0], Mode("none"))
+    # a Dahl plant has no stick switch: the axis never rests on a stuck friction
+    assert run.counters["stick_substeps"] == 0
+    rigid = setup.simulate_axis(ref, ref.axes[0], Mode("none"),
+                                law=RigidBodyFriction(0.0, TC, 0.0), inertia=J)
+    assert rigid.counters["stick_substeps"] > 0
