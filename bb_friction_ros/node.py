@@ -221,6 +221,8 @@ class FrictionNode(Node):
         if self.unknown_parameters:
             values["unknown_parameters"] = ",".join(self.unknown_parameters)
         values["fast_inputs"] = self._taker.fast
+        for key, value in self.planned.items():     # friction/planned_trajectory's counts
+            values[f"planned_{key}"] = value
         return values, converged
 
     def check_other_publishers(self):

@@ -48,7 +48,7 @@ PY = sys.executable
 # 10 um of pre-sliding on a 20 mm lead, in nut angle [rad]
 PRESLIDING_RAD = 10e-6 * 2 * math.pi / 0.02
 MODES = ["coulomb_viscous", "coulomb_viscous_commanded", "lugre", "lugre_commanded", "model",
-         "model_commanded", "planned", "truth"]
+         "model_commanded", "planned", "node_planned", "truth"]
 LOOP = {"rate_hz": 1000.0, "position_gain_per_s": 100.0, "velocity_gain_nm_s_per_rad": 0.25,
         "velocity_integral_gain_nm_per_rad": 10.0, "torque_limit_nm": 5.0,
         "velocity_feedforward": 1.0, "acceleration_feedforward": 1.0,

@@ -40,12 +40,14 @@ MEASURED = "measured"
 COMMANDED = "commanded"
 BASE_MODES = ("none", "coulomb_viscous", "coulomb_viscous_commanded", "lugre",
               "lugre_commanded", "model", "model_commanded", "truth")
-ALL_MODES = BASE_MODES + ("node", "planned")
+ALL_MODES = BASE_MODES + ("node", "planned", "node_planned")
+# computed ahead along the reference, played back by time
+PLANNED_MODES = ("planned", "node_planned")
 
 
 def timing_of(name):
     """Return the timing of a mode name."""
-    return COMMANDED if name.endswith("_commanded") else MEASURED
+    return COMMANDED if name.endswith("_commanded") or name in PLANNED_MODES else MEASURED
 
 
 class Mode:

@@ -22,18 +22,33 @@ time and the coverage is optimistic.
 The node is given a copy of the model file without its ``inertia`` terms (in a temporary
 directory), like the ``model`` mode: J alpha is the loop's acceleration
 feedforward, not friction.
+
+The ``node_planned`` mode is the ``planned`` mode through the node: the whole reference is
+sent once, before the run, as a ``trajectory_msgs/JointTrajectory`` on
+``friction/planned_trajectory`` (positions, velocities, times from its start), as a motion
+planner hands it to ``joint_trajectory_controller``; the node's answer on
+``friction/planned_feedforward`` (the same points, friction torque in ``effort``) is played
+back by time with the ``planned`` mode's gate.  A standing point with a torque is a
+breakaway before a planned start (the node sends nothing else at standstill).
 """
 
 from collections import Counter
 import time
 
+import numpy as np
+
+from bb_friction_ros import interface
 from bb_friction_ros.feedforward import FeedforwardInterpolator, INSIDE
 from bb_friction_ros.model_file import physics_of, read_model_file, write_model_file
-from bb_friction_ros.servo.modes import Mode
+from bb_friction_ros.servo.modes import Mode, PlannedMode
 from bb_friction_ros.servo.plant import friction_terms
 
 # Stamps of the node's inputs: the run's time plus this (a plausible ROS time, > 0).
 STAMP_BASE_S = 1000.0
+# Wait for the node's planned feedforward [s]: it steps the model along the whole reference
+# (about 1 s of CPU per 10 s of reference at 1 kHz on these machines), on a shared core.
+PLANNED_TIMEOUT_S = 120.0
+TRAJECTORY_TYPE = "trajectory_msgs/msg/JointTrajectory"
 
 
 class NodeRuns(list):
@@ -128,5 +143,77 @@ def _run(setup, reference, workdir):
                                 if isinstance(v, (int, float, str))}
         c["axis"] = axis.name
         cover.append(c)
+    runs.coverage = cover if len(cover) > 1 else cover[0]
+    return runs
+
+
+def planned_trajectory_msg(t_s, angle_rad, velocity_rad_s, joint, stamp_s):
+    """Return the JointTrajectory of one axis's reference (time from its first sample)."""
+    from builtin_interfaces.msg import Duration
+    from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+    from bb_friction_ros.harness import stamp_msg
+    msg = JointTrajectory(joint_names=[joint])
+    msg.header.stamp = stamp_msg(stamp_s)
+    t0 = float(t_s[0])
+    for t, phi, w in zip(t_s, angle_rad, velocity_rad_s):
+        ns = int(round((float(t) - t0) * 1e9))
+        msg.points.append(JointTrajectoryPoint(
+            positions=[float(phi)], velocities=[float(w)],
+            time_from_start=Duration(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)))
+    return msg
+
+
+def run_node_planned_mode(setup, reference):
+    """Run every axis with the node's planned feedforward of its reference (module doc)."""
+    from pathlib import Path
+    import tempfile
+    with tempfile.TemporaryDirectory(prefix="servo_node_planned_") as tmp:
+        return _run_planned(setup, reference, Path(tmp))
+
+
+def _run_planned(setup, reference, workdir):
+    import os
+    from bb_friction_ros.harness import FrictionNodeHarness, message_class
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    runs = NodeRuns()
+    cover = []
+    t = reference.t_s
+    for i, axis in enumerate(reference.axes):
+        path = setup.model_path if i == 0 or not setup.model_path_y else setup.model_path_y
+        model = friction_only_model(path, workdir / f"node_model_{axis.name}.yaml")
+        ms = setup.settings.model
+        params = {"config_file": str(model), "model_rate_hz": ms.model_rate_hz,
+                  "model_step_deg": ms.model_step_deg, "b2b_feedforward": ms.b2b_feedforward}
+        load = setup.loads(reference, axis)
+        w_ref = axis.ref_velocity(t)
+        with FrictionNodeHarness(parameters=params) as h:
+            h.publish_axial_load(float(load[0]), STAMP_BASE_S)
+            answers = h.collect(interface.PLANNED_FEEDFORWARD, TRAJECTORY_TYPE)
+            joint = h.node.get_parameter("nut_joint").value
+            pub = h.io.create_publisher(message_class(TRAJECTORY_TYPE),
+                                        interface.PLANNED_TRAJECTORY, 1)
+            deadline = time.monotonic() + PLANNED_TIMEOUT_S
+            while pub.get_subscription_count() == 0:    # a message before the match is lost
+                if time.monotonic() > deadline:
+                    raise TimeoutError(f"{interface.PLANNED_TRAJECTORY}: the node's "
+                                       "subscription was not matched")
+                time.sleep(0.01)
+            wall0 = time.perf_counter()
+            pub.publish(planned_trajectory_msg(t, axis.ref_rad, w_ref, joint,
+                                               STAMP_BASE_S + float(t[0])))
+            answers.wait_for(1, timeout_s=PLANNED_TIMEOUT_S)
+            latency = time.perf_counter() - wall0
+            msg = answers.messages[-1]
+            diag = {k: v for k, v in h.diagnostics_values().items()
+                    if isinstance(v, (int, float, str))}
+        ff = np.array([pt.effort[0] for pt in msg.points], dtype=float)
+        if ff.size != t.size:
+            raise RuntimeError(f"{interface.PLANNED_FEEDFORWARD}: {ff.size} points for a "
+                               f"trajectory of {t.size}")
+        breakaway = (w_ref == 0.0) & (ff != 0.0)
+        mode = PlannedMode("node_planned", t, ff, w_ref, breakaway)
+        runs.append(setup.simulate_axis(reference, axis, mode, axis_index=i))
+        cover.append({"axis": axis.name, "points": int(ff.size),
+                      "answer_latency_s": latency, "diagnostics": diag})
     runs.coverage = cover if len(cover) > 1 else cover[0]
     return runs

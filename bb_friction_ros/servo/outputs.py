@@ -70,7 +70,7 @@ def _fmt(v, digits=3):
     return f"{v:.{digits}g}"
 
 
-PRODUCT = ("model", "model_commanded", "node")
+PRODUCT = ("model", "model_commanded", "node", "planned", "node_planned")
 BASELINES = ("coulomb_viscous", "coulomb_viscous_commanded", "lugre", "lugre_commanded")
 
 

@@ -48,6 +48,9 @@ def run_servo_test(recording, loop_path, config, out, modes=(), progress=True, p
         if name == "node":
             from bb_friction_ros.servo.node_mode import run_node_mode
             results[name] = run_node_mode(setup, reference)
+        elif name == "node_planned":
+            from bb_friction_ros.servo.node_mode import run_node_planned_mode
+            results[name] = run_node_planned_mode(setup, reference)
         else:
             results[name] = setup.run_mode(reference, name)
         cpu[name] = time.process_time() - t0
@@ -77,7 +80,7 @@ def run_servo_test(recording, loop_path, config, out, modes=(), progress=True, p
         m["counters"] = counters
         m["cpu_s"] = cpu[name]
         m["simulated_s_per_cpu_s"] = duration * len(runs) / cpu[name] if cpu[name] else None
-        if name == "node":
+        if name in ("node", "node_planned"):
             m["node"] = runs.coverage
         summary["modes"][name] = m
     if has_measured:

@@ -6,6 +6,7 @@
 import csv
 import json
 
+import numpy as np
 import pytest
 
 from bb_friction_ros.cli import main
@@ -143,3 +144,32 @@ def test_node_mode_runs_the_real_node_in_real_time_and_measures_its_coverage(
     assert 0.0 <= node["coverage"] <= 1.0 and node["profiles"] > 0
     assert node["diagnostics"]["received_nut_state"] > 0
     assert s["modes"]["node"]["counters"]["feedforward_wrong_sign"] == 0
+
+
+def test_node_planned_mode_sends_the_reference_as_a_joint_trajectory_and_equals_planned(
+        tmp_path, capsys, loop_file, axis_model):
+    """
+    The reference through the real node as a JointTrajectory: one answer with every point,
+    the feedforward played back equal to the offline ``planned`` mode's to rounding.
+    """
+    spec = _write(tmp_path / "s.yaml", "reference:\n  kind: reversal\n  speeds_rev_s: [1.0]\n"
+                  "  stroke_rev: 0.25\n  accel_rev_s2: 20.0\n")
+    out = tmp_path / "out"
+    code, _, err = run(capsys, "servo-test", spec, "--loop", loop_file, "--config",
+                       axis_model, "--out", out, "--modes", "planned", "node_planned",
+                       "--no-progress", "--no-plots")
+    assert code == 0, err
+    s = json.loads((out / "summary.json").read_text())
+    node = s["modes"]["node_planned"]["node"]
+    assert node["diagnostics"]["planned_published"] == 1
+
+    def column(name):
+        with open(out / "modes" / f"{name}.csv") as f:
+            return np.array([float(r["torque_feedforward_nm"]) for r in csv.DictReader(f)])
+
+    a, b = column("planned"), column("node_planned")
+    assert a.size == b.size == node["points"]
+    assert np.any(a != 0.0)
+    np.testing.assert_allclose(b, a, rtol=1e-9, atol=1e-12)
+    assert s["modes"]["node_planned"]["timing"] == "commanded"
+    assert s["modes"]["node_planned"]["counters"]["feedforward_wrong_sign"] == 0
