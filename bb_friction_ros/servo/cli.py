@@ -40,6 +40,10 @@ def add_servo_parser(subparsers):
                    "[, nut_velocity_rad_s]); default: a calibration run of the plant")
     p.add_argument("--measured-loop", action="store_true", help="require the recording's "
                    "nut_angle_rad and torque_meas_nm (the check against the measured loop)")
+    p.add_argument("--no-safety-gate", action="store_true", help="a study of what the "
+                   "feedforward safety gate costs: every mode's feedforward passes as computed "
+                   "(a sign against its motion included), still counted; never what a "
+                   "controller should run")
     p.add_argument("--no-plots", action="store_true", help="write no PNG figures")
     p.add_argument("--no-progress", action="store_true", help="no progress messages")
     p.add_argument("--json", action="store_true", help="print summary.json to stdout")
@@ -53,7 +57,8 @@ def run_servo_command(args):
                              modes=args.modes or (), progress=not args.no_progress,
                              plant=args.plant, calibration=args.calibration,
                              config_y=args.config_y, plots=not args.no_plots,
-                             measured_loop=args.measured_loop)
+                             measured_loop=args.measured_loop,
+                             safety_gate=not args.no_safety_gate)
     if args.json:
         print(json.dumps(summary, indent=2))
     else:

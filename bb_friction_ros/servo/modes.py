@@ -19,13 +19,17 @@ node                           the real friction_node over DDS (servo.node_mode)
 planned                        ``bb-friction feedforward`` of the reference (planned.py): the
                                model stepped along the commanded angle, breakaway before a
                                planned start, pre-rolling from the plan; played back by time
+node_planned                   ``planned`` through the real node: the reference sent as a
+                               JointTrajectory (servo.node_mode)
 =============================  ===============================================================
 
 Safety gate (every mode): a feedforward whose sign is not its own motion's direction (the
 velocity it answered), or that is not 0 at its own standstill, would push the axis against
 its motion or move it from rest: it is set to 0 and counted (``wrong_sign``).  How often a
 feedforward opposes the plant's actual motion is counted beside it (``against_motion``:
-a commanded feedforward may lead a reversal by design).
+a commanded feedforward may lead a reversal by design).  A study may run without the gate
+(``gate`` False, ``servo-test --no-safety-gate``): the feedforward then passes as computed,
+still counted, to measure what the gate costs; nothing a controller runs takes that path.
 """
 
 import math
@@ -54,6 +58,7 @@ class Mode:
     """A feedforward: ``value(t, measured angle, velocity, reference angle, velocity, load)``."""
 
     name = "none"
+    gate = True             # False: a study of what the safety gate costs (module docstring)
 
     def __init__(self, name):
         """Name the mode; its timing follows from the name."""
@@ -83,7 +88,8 @@ class Mode:
         """
         if ff != 0.0 and (direction == 0.0 or (ff > 0.0) != (direction > 0.0)):
             self.wrong_sign += 1
-            ff = 0.0
+            if self.gate:
+                ff = 0.0
         if ff != 0.0 and plant_velocity != 0.0 and (ff > 0.0) != (plant_velocity > 0.0):
             self.against_motion += 1
         return ff

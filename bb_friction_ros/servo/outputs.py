@@ -108,10 +108,15 @@ def write_report(path, summary):
              f"({summary['reference']['kind']}, {summary['reference']['duration_s']:.3g} s at "
              f"{summary['loop']['rate_hz']:g} Hz).  Plant: {summary['plant']['model_file']}; "
              f"feedforward model: {summary['model_file']}.", "",
-             "**Verdict:** " + summary["verdict"], "",
-             "| mode | timing | following error RMS [um] | max [um] | reversal glitch max "
-             "[um] | cruise RMS [um] | circle radial range [um] | wrong-sign zeroed |",
-             "|---|---|---|---|---|---|---|---|"]
+             "**Verdict:** " + summary["verdict"], ""]
+    if not summary.get("safety_gate", True):
+        lines += ["**A study without the safety gate** (`--no-safety-gate`): feedforwards "
+                  "against their own motion were fed as computed (counted under wrong-sign); "
+                  "no controller should run them.", ""]
+    lines += ["| mode | timing | following error RMS [um] | max [um] | reversal glitch max "
+              "[um] | cruise RMS [um] | circle radial range [um] | wrong-sign "
+              + ("zeroed |" if summary.get("safety_gate", True) else "fed |"),
+              "|---|---|---|---|---|---|---|---|"]
     for name, v in summary["modes"].items():
         circle = v.get("circle", {}).get("radial_deviation_range_um")
         lines.append(f"| {name} | {v['timing']} | {_fmt(v['following_error_rms_um'])} | "

@@ -94,6 +94,7 @@ class Setup:
         self.presliding_rad = [plant_presliding_rad(settings.plant.presliding_rad, p)
                                for p in (self.plant_path, self.model_path_y or self.plant_path)]
         self.fits = {}
+        self.safety_gate = True     # False: every mode's feedforward passes ungated (a study)
 
     # --- the parts of a run ---------------------------------------------------------------
 
@@ -178,6 +179,7 @@ class Setup:
             law = self.prepare_law(self.plant_law(axis_index), angle0, float(load[0]))
             presliding = self.presliding_rad[axis_index]
         plant = Plant(law, j, self.settings.plant, angle0, presliding)
+        mode.gate = self.safety_gate
         ctl = Cascade(loop, j)
         w_ref = axis.ref_velocity(t)
         a_ref = axis.ref_accel(t)

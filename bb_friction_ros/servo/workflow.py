@@ -21,7 +21,7 @@ from bb_friction_ros.servo.settings import load_settings
 
 def run_servo_test(recording, loop_path, config, out, modes=(), progress=True, plant=None,
                    calibration=None, config_y=None, plots=True, measured_loop=None,
-                   settings=None):
+                   settings=None, safety_gate=True):
     """
     Run the servo test and write its outputs to ``out``; return the summary.
 
@@ -29,11 +29,13 @@ def run_servo_test(recording, loop_path, config, out, modes=(), progress=True, p
     ``plant``: the plant's model file (default ``config``).  ``calibration``: a recording
     CSV the baselines and the rigid-body reference are fitted on.  ``measured_loop``: True
     requires the recording's measured channels, None compares when it has them.
+    ``safety_gate`` False: a study of what the feedforward safety gate costs (servo.modes).
     """
     settings = settings or load_settings(loop_path)
     names = check_modes(modes or [m for m in modes_mod.BASE_MODES if m != "none"])
     need = MEASURED_CHANNELS if measured_loop else ()
     setup = Setup(settings, config, plant, config_y)
+    setup.safety_gate = bool(safety_gate)
     reference = load(recording, settings, config, need, config_y)
     axis = reference.axes[0]
     has_measured = axis.meas_rad is not None and axis.torque_meas_nm is not None
@@ -65,6 +67,7 @@ def run_servo_test(recording, loop_path, config, out, modes=(), progress=True, p
                   **{k: getattr(settings.plant, k)
                      for k in settings.plant.__dataclass_fields__}},
         "lead_m": setup.lead_m,
+        "safety_gate": setup.safety_gate,
         "calibration_source": cal.source,
         "baselines": {"coulomb_viscous": setup.fits["coulomb_viscous"].summary(),
                       "lugre": setup.fits["lugre"].summary()},

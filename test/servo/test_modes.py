@@ -130,3 +130,14 @@ def test_planned_mode_plays_the_planned_feedforward_back_gated_by_the_plan():
     got = [m.value(t[k], 0.0, 0.0, 0.0, w[k], 1000.0, 0.0) for k in range(6)]
     assert got == [0.0, 0.0, 0.2, 0.21, 0.0, 0.0]
     assert m.wrong_sign == 2 and m.timing == "commanded"
+
+
+def test_without_the_safety_gate_a_wrong_sign_passes_and_is_still_counted():
+    """The study switch: the gate's decision is counted either way; only the gate zeroes."""
+    from bb_friction_ros.servo.modes import Mode
+    gated, study = Mode("x"), Mode("x")
+    study.gate = False
+    assert gated._gated(-0.1, 1.0, 1.0) == 0.0
+    assert study._gated(-0.1, 1.0, 1.0) == -0.1
+    assert gated.wrong_sign == study.wrong_sign == 1
+    assert study._gated(0.1, 1.0, 1.0) == 0.1 and study.wrong_sign == 1
