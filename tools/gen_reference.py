@@ -161,6 +161,7 @@ def render():
                      "elastic.nut_support": ("outer_surface", "flange_at_track_start",
                                              "flange_at_track_end")}
     b2b = {"b2b_feedforward": B2B_FEEDFORWARDS}
+    reference = {"kind": KINDS, "directions": ("ccw", "cw", "both")}
     servo = {"friction_update": FRICTION_UPDATES, "ball_state": BALL_STATES}
     sections = [
         ("The model file: `ball_screw:`",
@@ -191,8 +192,7 @@ def render():
         ("Servo test, `model:`", "", list(_rows(ModelSettings, choices={**b2b, **servo}))),
         ("Servo test, `calibration:`", "", list(_rows(CalibrationSettings))),
         ("Servo test reference spec", "The moves of `servo-test --reference`.",
-         list(_rows(ReferenceSpec, choices={"kind": KINDS,
-                                           "directions": ("ccw", "cw", "both")}))),
+         list(_rows(ReferenceSpec, choices=reference))),
         ("Arrangement average (the `averaged` B2B feedforward)",
          "How the mean B2B torque over the balls' arrangements is taken "
          "(`ball_screw/arrangement.py`).", list(_rows(ArrangementAverage))),
