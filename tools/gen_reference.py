@@ -17,6 +17,7 @@ import sys
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 OUT = ROOT / "docs" / "reference" / "settings.md"
+CLI_OUT = ROOT / "docs" / "reference" / "cli.md"
 
 # YAML keys a user may write in an edge unit instead of the SI field (config.EDGE_UNITS)
 EDGE = {"rad": ("deg", 180.0 / math.pi), "m": ("mm", 1e3), "m/s": ("mm/s", 1e3)}
@@ -173,11 +174,12 @@ def render():
          "alone, written by `discrepancy --baseline zero`).",
          list(_rows(BallScrewConfig, choices=screw_choices))),
         ("The node: `friction_node: ros__parameters:`",
-         "ROS parameters of `friction_node` (`config/friction_node.yaml`, `--params-file` of "
-         "`node`, `replay` and `discrepancy`). Types are ROS's: a double refuses `100`, an "
+         "ROS parameters of `friction_node` (`config/friction_node.yaml`, "
+         "`bb-friction node --params-file`). Types are ROS's: a double refuses `100`, an "
          "integer refuses `256.0`. Every parameter but `queue_size`, `diagnostics_rate_hz` "
          "and `reliable_qos` can be changed while the node runs; a change of `config_file`, "
-         "the schedule or `b2b_feedforward` rebuilds the model.",
+         "the schedule or `b2b_feedforward` rebuilds the model. `replay --params-file` reads "
+         "the same file.",
          list(_rows(NodeParameters, choices=b2b))),
         ("Discrepancy workflow: `discrepancy:` (`--settings FILE`)",
          "Thresholds and grids of `bb-friction discrepancy`; `physical.*` are the model's "
@@ -222,22 +224,83 @@ def render():
     return "\n".join(out).rstrip() + "\n"
 
 
+def _cli_rows(parser):
+    import argparse
+    out = ["| argument | default | meaning |", "|---|---|---|"]
+    for a in parser._actions:
+        if isinstance(a, argparse._HelpAction):
+            continue
+        name = ", ".join(a.option_strings) or (a.metavar or a.dest)
+        if a.option_strings and a.nargs != 0:
+            name += " " + (a.metavar or a.dest.upper())
+        if a.nargs in ("+", "*"):
+            name += " ..."
+        shown = a.option_strings and a.default is not None and a.default is not False
+        default = _number(a.default) if shown else ""
+        text = (a.help or "").replace("%%", "%").replace("%(default)g", _number(a.default))
+        if a.choices:
+            text = (text + "; " if text else "") + "one of " + ", ".join(
+                f"`{c}`" for c in a.choices)
+        if not a.option_strings:
+            text = "(required) " + text
+        elif a.required:
+            text = "(required) " + text
+        out.append(f"| `{name}` | {default} | {text.replace('|', '/')} |")
+    return "\n".join(out)
+
+
+def render_cli():
+    """Return the text of docs/reference/cli.md: every command, argument and default."""
+    import argparse
+    sys.path.insert(0, str(ROOT))
+    from bb_friction_ros.cli import build_parser
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    helps = {c.dest: c.help for c in sub._choices_actions}
+    out = ["<!-- Written by tools/gen_reference.py from the code; do not edit by hand. -->",
+           "", "# Command-line reference: `bb-friction`", "",
+           "Every sub-command with its arguments and defaults, as `bb-friction COMMAND "
+           "--help` prints them. `friction_node` (the console script) is `bb-friction "
+           "node`.", "",
+           "Exit status, every command: 0 done; 2 bad input (a file, flag, recording or "
+           "value, named in the message; nothing is lost: [../bad_input.md]"
+           "(../bad_input.md)); 130 interrupted (Ctrl-C); 1 with a traceback is a bug. "
+           "Besides:", "",
+           "| command | status | meaning |", "|---|---|---|",
+           "| `linear` | 3 | the solve did not converge (`converged: false`) |",
+           "| `screw-pair`, `screw-sim` | 1 | a solve did not converge |",
+           "| `feedforward` | 1 | a row's model step did not converge (`nonconverged_rows`) |",
+           "| `screw-verdict` | 1 | the nominal build fails the verdict |",
+           "| `sweep`, `screw-verdict` | 3 | incomplete (`--max-samples` reached or a task "
+           "failed; rerun to resume) |",
+           "| `discrepancy` | 2 | also: the recording is too short or too flat to tell "
+           "(`verdict: none` with `reason` and `missing`) |",
+           ""]
+    for name, p in sub.choices.items():
+        out += [f"## `bb-friction {name}`", ""]
+        if helps.get(name):
+            out += [helps[name][0].upper() + helps[name][1:] + ".", ""]
+        out += [_cli_rows(p), ""]
+    return "\n".join(out).rstrip() + "\n"
+
+
 def main(argv=None):
     """Write the reference, or with ``--check`` say whether it is current."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     p.add_argument("--check", action="store_true", help="exit 1 if the file is out of date")
     args = p.parse_args(argv)
-    text = render()
-    if args.check:
-        current = OUT.read_text() if OUT.exists() else ""
-        if current != text:
-            print(f"{OUT.relative_to(ROOT)} is out of date: run tools/gen_reference.py")
-            return 1
-        return 0
-    OUT.parent.mkdir(parents=True, exist_ok=True)
-    OUT.write_text(text)
-    print(f"wrote {OUT.relative_to(ROOT)}")
-    return 0
+    status = 0
+    for path, text in ((OUT, render()), (CLI_OUT, render_cli())):
+        if args.check:
+            current = path.read_text() if path.exists() else ""
+            if current != text:
+                print(f"{path.relative_to(ROOT)} is out of date: run tools/gen_reference.py")
+                status = 1
+            continue
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+        print(f"wrote {path.relative_to(ROOT)}")
+    return status
 
 
 if __name__ == "__main__":
