@@ -149,7 +149,8 @@ def render():
     from bb_friction_ros.ball_screw.parameters import BallScrewConfig
     from bb_friction_ros.config import LinearBearingConfig
     from bb_friction_ros.discrepancy.settings import DiscrepancySettings
-    from bb_friction_ros.node_parameters import B2B_FEEDFORWARDS, NodeParameters
+    from bb_friction_ros.node_parameters import (B2B_FEEDFORWARDS, FIELDS, MODEL_PARAMETERS,
+                                                 NodeParameters, RUNTIME)
     from bb_friction_ros.planned import PlannedSettings
     from bb_friction_ros.servo.reference import KINDS, ReferenceSpec
     from bb_friction_ros.servo.settings import (BALL_STATES, CalibrationSettings,
@@ -162,6 +163,7 @@ def render():
                      "elastic.nut_support": ("outer_surface", "flange_at_track_start",
                                              "flange_at_track_end")}
     b2b = {"b2b_feedforward": B2B_FEEDFORWARDS}
+    fixed_params = [n for n in FIELDS if n not in RUNTIME]
     reference = {"kind": KINDS, "directions": ("ccw", "cw", "both")}
     servo = {"friction_update": FRICTION_UPDATES, "ball_state": BALL_STATES}
     sections = [
@@ -176,10 +178,10 @@ def render():
         ("The node: `friction_node: ros__parameters:`",
          "ROS parameters of `friction_node` (`config/friction_node.yaml`, "
          "`bb-friction node --params-file`). Types are ROS's: a double refuses `100`, an "
-         "integer refuses `256.0`. Every parameter but `queue_size`, `diagnostics_rate_hz` "
-         "and `reliable_qos` can be changed while the node runs; a change of `config_file`, "
-         "the schedule or `b2b_feedforward` rebuilds the model. `replay --params-file` reads "
-         "the same file.",
+         "integer refuses `256.0`. Changeable while the node runs: all but "
+         + ", ".join(f"`{n}`" for n in fixed_params) + "; a change of "
+         + ", ".join(f"`{n}`" for n in sorted(MODEL_PARAMETERS))
+         + " rebuilds the model. `replay --params-file` reads the same file.",
          list(_rows(NodeParameters, choices=b2b))),
         ("Discrepancy workflow: `discrepancy:` (`--settings FILE`)",
          "Thresholds and grids of `bb-friction discrepancy`; `physical.*` are the model's "
@@ -271,6 +273,7 @@ def render_cli():
            "| `screw-pair`, `screw-sim` | 1 | a solve did not converge |",
            "| `feedforward` | 1 | a row's model step did not converge (`nonconverged_rows`) |",
            "| `screw-verdict` | 1 | the nominal build fails the verdict |",
+           "| `demo` | 1 | the live node published no prediction |",
            "| `sweep`, `screw-verdict` | 3 | incomplete (`--max-samples` reached or a task "
            "failed; rerun to resume) |",
            "| `discrepancy` | 2 | also: the recording is too short or too flat to tell "
