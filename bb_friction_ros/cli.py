@@ -162,8 +162,9 @@ def _add_replay_parser(sub):
                        "live node's model path, offline")
     p.add_argument("bag", help="rosbag2 directory")
     p.add_argument("--config", help="ball-screw YAML (default: bundled config/ball_screw.yaml)")
-    p.add_argument("--params-file", help="the node's ROS params file: nut_joint, "
-                   "model_rate_hz, max_axial_load_n (and config_file) are taken from it")
+    p.add_argument("--params-file", help="the node's ROS params file (friction_node: "
+                   "ros__parameters): every node parameter in it is read, config_file "
+                   "included; the flags below override it")
     p.add_argument("--nut-joint", help="joint name in nut_state (overrides the params file)")
     p.add_argument("--model-rate-hz", type=float, help="least model steps per second of input "
                    "time (the floor when the nut creeps or stands)")
