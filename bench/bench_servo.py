@@ -1,6 +1,6 @@
 """Studies and speed of bb-friction servo-test; prints tables, asserts nothing.
 
-Run: .venv/bin/python bench/bench_servo.py [--part exact|speed|measured|b2b|sweep|node|all]
+Run: .venv/bin/python bench/bench_servo.py [--part exact|speed|measured|b2b|sweep|node|gate|all]
                                            [--workdir DIR] [--repeats 3]
 
 0. exact: the none mode against closed-loop recordings of the same plant and loop made with
@@ -23,7 +23,10 @@ Run: .venv/bin/python bench/bench_servo.py [--part exact|speed|measured|b2b|swee
    load, stroke, velocity-loop bandwidth, servo rate; the product's model is the plant's
    physics with the terms calibrated in part 3;
 5. node: the node mode's profile coverage (the share of servo cycles whose measured angle lies
-   inside a valid profile) and its following error against the model mode's, in one run.
+   inside a valid profile) and its following error against the model mode's, in one run;
+6. gate: what the feedforward safety gate costs at reversals (the b2b case, run-in balls,
+   reversals at 1 rev/s and the circle): every mode with and without the gate
+   (``servo-test --no-safety-gate``), as ratios to fitted Coulomb + viscous.
 """
 
 import argparse
@@ -335,6 +338,46 @@ def part_b2b(work):
     print(f"  ballbar plot of the unknown case: {work / 'servo_circle_unknown' / 'ballbar.png'}")
 
 
+# --- 6. the safety gate's cost ----------------------------------------------------------------
+
+def part_gate(work):
+    """Every mode with and without the safety gate, as ratios to Coulomb + viscous."""
+    plant, model = calibrated_model(work)
+    rev = spec_file(work / "b2b_reversal.yaml", kind="reversal", speeds_rev_s=[1.0],
+                    stroke_rev=2.0, accel_rev_s2=20.0, axial_load_n=1500.0)
+    circ = spec_file(work / "b2b_circle.yaml", kind="circle", radius_mm=10.0, feed_m_min=2.0,
+                     accel_m_s2=1.0, directions="ccw", axial_load_n=1500.0)
+    modes = ["coulomb_viscous", "coulomb_viscous_commanded", "lugre", "lugre_commanded",
+             "model", "planned", "truth"]
+    case = ("unknown", "run_in", "fresh")
+    print("\n6. the safety gate's cost: ratio to coulomb_viscous (gated) of the mean reversal "
+          "glitch (reversals at 1 rev/s) and of the circle's radial range; run-in plant, "
+          "arrangement unknown")
+    rows = {}
+    for tag, spec in (("reversal", rev), ("circle", circ)):
+        for gate in (True, False):
+            name, plant_state, model_state = case
+            lf = loop_file(work / f"loop_gate_{tag}.yaml",
+                           plant={"presliding_rad": PRESLIDING_RAD, "ball_state": plant_state},
+                           model={"ball_state": model_state})
+            out = work / f"servo_gate_{tag}_{'on' if gate else 'off'}"
+            cli("servo-test", spec, "--loop", lf, "--config", model, "--plant", plant,
+                "--out", out, "--modes", *modes, "--no-progress", "--no-plots",
+                *([] if gate else ["--no-safety-gate"]))
+            rows[(tag, gate)] = summary(out)["modes"]
+    cv_rev = rows[("reversal", True)]["coulomb_viscous"]["reversal_glitch_mean_um"]
+    cv_circ = rows[("circle", True)]["coulomb_viscous"]["circle"]["radial_deviation_range_um"]
+    print(f"  {'mode':27s} {'glitch gated':>13s} {'ungated':>9s} {'radial gated':>13s} "
+          f"{'ungated':>9s}")
+    for mode in modes:
+        g = [rows[("reversal", on)][mode]["reversal_glitch_mean_um"] / cv_rev
+             for on in (True, False)]
+        c = [rows[("circle", on)][mode]["circle"]["radial_deviation_range_um"] / cv_circ
+             for on in (True, False)]
+        print(f"  {mode:27s} {g[0]:13.3f} {g[1]:9.3f} {c[0]:13.3f} {c[1]:9.3f}")
+    print(f"  (coulomb_viscous gated: glitch {cv_rev:.3g} um, radial range {cv_circ:.3g} um)")
+
+
 # --- 4. the sweep ----------------------------------------------------------------------------
 
 def part_sweep(work):
@@ -375,7 +418,7 @@ def main():
     """Parse the options and run the parts."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--part", choices=("exact", "speed", "measured", "b2b", "sweep", "node",
-                                      "all"),
+                                      "gate", "all"),
                    default="all")
     p.add_argument("--workdir", type=Path, default=None,
                    help="where the recordings and runs go (default: a temporary directory)")
@@ -397,6 +440,8 @@ def main():
         part_sweep(work)
     if args.part in ("node", "all"):
         part_node(work, args.repeats)
+    if args.part in ("gate", "all"):
+        part_gate(work)
 
 
 if __name__ == "__main__":
