@@ -114,35 +114,50 @@ def friction_only_model(src, dst):
 
 def run_node_mode(setup, reference):
     """Run every axis with the node in the loop; return NodeRuns with ``coverage``."""
+
+    def run_axis(h, i, axis):
+        mode = NodeMode(h, setup.settings.loop.period_s)
+        h.profiles     # subscribe before the first input
+        run = setup.simulate_axis(reference, axis, mode, axis_index=i)
+        return run, mode.coverage()
+
+    return _with_node(setup, reference, "servo_node_", run_axis)
+
+
+def _with_node(setup, reference, prefix, run_axis):
+    """
+    Run ``run_axis(harness, axis index, axis)`` -> (AxisRun, coverage) with a node per axis.
+
+    The node gets the axis's model file without its inertia terms (in a temporary directory)
+    and the ``model:`` settings, on a ROS context and domain of its own, and holds the
+    recording's first axial load.  Return NodeRuns; each coverage gets the axis's name and
+    the node's diagnostics at the end.
+    """
+    import os
     from pathlib import Path
     import tempfile
-    with tempfile.TemporaryDirectory(prefix="servo_node_") as tmp:
-        return _run(setup, reference, Path(tmp))
-
-
-def _run(setup, reference, workdir):
-    import os
     from bb_friction_ros.harness import FrictionNodeHarness
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     runs = NodeRuns()
     cover = []
-    for i, axis in enumerate(reference.axes):
-        path = setup.model_path if i == 0 or not setup.model_path_y else setup.model_path_y
-        model = friction_only_model(path, workdir / f"node_model_{axis.name}.yaml")
-        ms = setup.settings.model
-        params = {"config_file": str(model), "model_rate_hz": ms.model_rate_hz,
-                  "model_step_deg": ms.model_step_deg}
-        load = setup.loads(reference, axis)
-        with FrictionNodeHarness(parameters=params) as h:
-            h.publish_axial_load(float(load[0]), STAMP_BASE_S)
-            mode = NodeMode(h, setup.settings.loop.period_s)
-            h.profiles     # subscribe before the first input
-            runs.append(setup.simulate_axis(reference, axis, mode, axis_index=i))
-            c = mode.coverage()
-            c["diagnostics"] = {k: v for k, v in h.diagnostics_values().items()
-                                if isinstance(v, (int, float, str))}
-        c["axis"] = axis.name
-        cover.append(c)
+    ms = setup.settings.model
+    with tempfile.TemporaryDirectory(prefix=prefix) as tmp:
+        for i, axis in enumerate(reference.axes):
+            path = setup.model_path if i == 0 or not setup.model_path_y \
+                else setup.model_path_y
+            model = friction_only_model(path, Path(tmp) / f"node_model_{axis.name}.yaml")
+            params = {"config_file": str(model), "model_rate_hz": ms.model_rate_hz,
+                      "model_step_deg": ms.model_step_deg,
+                      "b2b_feedforward": ms.b2b_feedforward}
+            load = setup.loads(reference, axis)
+            with FrictionNodeHarness(parameters=params) as h:
+                h.publish_axial_load(float(load[0]), STAMP_BASE_S)
+                run, c = run_axis(h, i, axis)
+                c["diagnostics"] = {k: v for k, v in h.diagnostics_values().items()
+                                    if isinstance(v, (int, float, str))}
+            runs.append(run)
+            c["axis"] = axis.name
+            cover.append(c)
     runs.coverage = cover if len(cover) > 1 else cover[0]
     return runs
 
@@ -165,55 +180,33 @@ def planned_trajectory_msg(t_s, angle_rad, velocity_rad_s, joint, stamp_s):
 
 def run_node_planned_mode(setup, reference):
     """Run every axis with the node's planned feedforward of its reference (module doc)."""
-    from pathlib import Path
-    import tempfile
-    with tempfile.TemporaryDirectory(prefix="servo_node_planned_") as tmp:
-        return _run_planned(setup, reference, Path(tmp))
-
-
-def _run_planned(setup, reference, workdir):
-    import os
-    from bb_friction_ros.harness import FrictionNodeHarness, message_class
-    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    runs = NodeRuns()
-    cover = []
+    from bb_friction_ros.harness import message_class
     t = reference.t_s
-    for i, axis in enumerate(reference.axes):
-        path = setup.model_path if i == 0 or not setup.model_path_y else setup.model_path_y
-        model = friction_only_model(path, workdir / f"node_model_{axis.name}.yaml")
-        ms = setup.settings.model
-        params = {"config_file": str(model), "model_rate_hz": ms.model_rate_hz,
-                  "model_step_deg": ms.model_step_deg, "b2b_feedforward": ms.b2b_feedforward}
-        load = setup.loads(reference, axis)
+
+    def run_axis(h, i, axis):
         w_ref = axis.ref_velocity(t)
-        with FrictionNodeHarness(parameters=params) as h:
-            h.publish_axial_load(float(load[0]), STAMP_BASE_S)
-            answers = h.collect(interface.PLANNED_FEEDFORWARD, TRAJECTORY_TYPE)
-            joint = h.node.get_parameter("nut_joint").value
-            pub = h.io.create_publisher(message_class(TRAJECTORY_TYPE),
-                                        interface.PLANNED_TRAJECTORY, 1)
-            deadline = time.monotonic() + PLANNED_TIMEOUT_S
-            while pub.get_subscription_count() == 0:    # a message before the match is lost
-                if time.monotonic() > deadline:
-                    raise TimeoutError(f"{interface.PLANNED_TRAJECTORY}: the node's "
-                                       "subscription was not matched")
-                time.sleep(0.01)
-            wall0 = time.perf_counter()
-            pub.publish(planned_trajectory_msg(t, axis.ref_rad, w_ref, joint,
-                                               STAMP_BASE_S + float(t[0])))
-            answers.wait_for(1, timeout_s=PLANNED_TIMEOUT_S)
-            latency = time.perf_counter() - wall0
-            msg = answers.messages[-1]
-            diag = {k: v for k, v in h.diagnostics_values().items()
-                    if isinstance(v, (int, float, str))}
-        ff = np.array([pt.effort[0] for pt in msg.points], dtype=float)
+        answers = h.collect(interface.PLANNED_FEEDFORWARD, TRAJECTORY_TYPE)
+        joint = h.node.get_parameter("nut_joint").value
+        pub = h.io.create_publisher(message_class(TRAJECTORY_TYPE),
+                                    interface.PLANNED_TRAJECTORY, 1)
+        deadline = time.monotonic() + PLANNED_TIMEOUT_S
+        while pub.get_subscription_count() == 0:    # a message before the match is lost
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"{interface.PLANNED_TRAJECTORY}: the node's "
+                                   "subscription was not matched")
+            time.sleep(0.01)
+        wall0 = time.perf_counter()
+        pub.publish(planned_trajectory_msg(t, axis.ref_rad, w_ref, joint,
+                                           STAMP_BASE_S + float(t[0])))
+        answers.wait_for(1, timeout_s=PLANNED_TIMEOUT_S)
+        latency = time.perf_counter() - wall0
+        ff = np.array([pt.effort[0] for pt in answers.messages[-1].points], dtype=float)
         if ff.size != t.size:
             raise RuntimeError(f"{interface.PLANNED_FEEDFORWARD}: {ff.size} points for a "
                                f"trajectory of {t.size}")
         breakaway = (w_ref == 0.0) & (ff != 0.0)
         mode = PlannedMode("node_planned", t, ff, w_ref, breakaway)
-        runs.append(setup.simulate_axis(reference, axis, mode, axis_index=i))
-        cover.append({"axis": axis.name, "points": int(ff.size),
-                      "answer_latency_s": latency, "diagnostics": diag})
-    runs.coverage = cover if len(cover) > 1 else cover[0]
-    return runs
+        run = setup.simulate_axis(reference, axis, mode, axis_index=i)
+        return run, {"points": int(ff.size), "answer_latency_s": latency}
+
+    return _with_node(setup, reference, "servo_node_planned_", run_axis)
