@@ -101,8 +101,9 @@ class PlantSettings:
     run_in_speed_rad_s: float = field(6.283185307179586, "rad/s", "nut speed of the run-in",
                                       lo=0.0, hi=1e4, lo_open=True)
     presliding_rad: float = field(0.0, "rad", "pre-sliding (Dahl) travel of the friction: it "
-                                  "builds up over this nut rotation after a reversal (0: a "
-                                  "stick-slip switch)", lo=0.0, hi=1.0)
+                                  "builds up over this nut rotation after a reversal (0: the "
+                                  "plant model file's pre_rolling travel, else a stick-slip "
+                                  "switch)", lo=0.0, hi=1.0)
     axial_load_n: float = field(0.0, "N", "axial load when the recording has none "
                                 "(axial_load_n column)", lo=-1e6, hi=1e6)
 
