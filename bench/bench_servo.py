@@ -249,13 +249,17 @@ def part_measured(work):
     print("\n2. measured loop: relative errors ||sim - meas|| / ||meas|| of the none run "
           "(plant: the discrepancy workflow's augmented.yaml) and of the rigid-body reference")
     print(f"  {'pre-sliding':>12s} {'plant':>12s} {'angle':>10s} {'velocity':>10s} "
-          f"{'torque':>10s}  terms found")
+          f"{'torque':>10s} {'moving':>10s} {'standing':>10s}  terms found")
     for pre, ml, terms in rows:
         for key, label in (("none", "model file"), ("rigid_body", "rigid body")):
             r = ml[key]
+            phase = r["torque_by_phase"]
             print(f"  {pre * 0.02 / (2 * math.pi) * 1e6:9.1f} um {label:>12s} "
-                  f"{r['angle']:10.3g} {r['velocity']:10.3g} {r['torque']:10.3g}"
+                  f"{r['angle']:10.3g} {r['velocity']:10.3g} {r['torque']:10.3g} "
+                  f"{phase['moving']:10.3g} {phase['standing']:10.3g}"
                   + (f"  {terms}" if key == "none" else ""))
+    print("  (moving, standing: the torque's relative error split by the reference's motion; "
+          "moving^2 + standing^2 = torque^2)")
 
 
 # --- 3. the ball-to-ball case ----------------------------------------------------------------

@@ -29,6 +29,15 @@ REVERSAL_WINDOW_S = 0.05
 CRUISE_ACCEL_FRACTION = 1e-3
 CRUISE_SPEED_FRACTION = 0.05
 CRUISE_SETTLE_S = 0.05
+# A reference standing still: |omega_ref| at most this fraction of its largest.  The central
+# differences of a constant angle are rounding (1e-13 rad/s after a few revolutions), not 0.
+STANDING_SPEED_FRACTION = 1e-6
+
+
+def standing_mask(w_ref):
+    """Return the mask of the samples where the reference stands still."""
+    w_abs = np.abs(w_ref)
+    return w_abs <= STANDING_SPEED_FRACTION * float(w_abs.max()) if w_abs.size else w_abs > 0
 
 
 def to_um(angle_rad, lead_m):

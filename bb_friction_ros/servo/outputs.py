@@ -130,12 +130,15 @@ def write_report(path, summary):
                   "recording (angle from its first sample), and of the same simulation with "
                   "the rigid-body model (J alpha + c omega + T_c sign(omega) + T_0) fitted by "
                   "least squares on the calibration recording.", "",
-                  "| plant | angle | velocity | torque command |", "|---|---|---|---|"]
+                  "| plant | angle | velocity | torque command | of it: moving | standing |",
+                  "|---|---|---|---|---|---|"]
         for key, label in (("none", "the model file"), ("rigid_body", "rigid-body reference")):
             r = ml.get(key)
             if r:
+                phase = r.get("torque_by_phase") or {}
                 lines.append(f"| {label} | {_fmt(r['angle'])} | {_fmt(r['velocity'])} | "
-                             f"{_fmt(r['torque'])} |")
+                             f"{_fmt(r['torque'])} | {_fmt(phase.get('moving'))} | "
+                             f"{_fmt(phase.get('standing'))} |")
         lines += ["", f"Rigid-body reference: {ml['rigid_body_source']}."]
         if ml.get("rigid_body"):
             better = ml["none_torque_error_at_most_rigid_body"]

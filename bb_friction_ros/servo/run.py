@@ -26,6 +26,7 @@ from bb_friction_ros.model_file import load_model_file
 from bb_friction_ros.runner import InputSample
 from bb_friction_ros.servo import baselines, modes as modes_mod
 from bb_friction_ros.servo.controller import Cascade
+from bb_friction_ros.servo.metrics import standing_mask
 from bb_friction_ros.servo.plant import (lead_of, ModelFriction, Plant, plant_inertia,
                                          plant_presliding_rad, quantise,
                                          RigidBodyFriction)
@@ -344,15 +345,28 @@ class _Inputs:
 
 
 def relative_errors(t_s, run, axis):
-    """Return {angle, velocity, torque}: ||sim - meas|| / ||meas|| (see measured_loop)."""
+    """
+    Return {angle, velocity, torque, torque_by_phase}: ||sim - meas|| / ||meas||.
+
+    ``torque_by_phase``: the torque's relative error split by the reference's motion,
+    {moving, standing}, each ||sim - meas|| over that phase's samples / ||meas|| over all
+    (so moving^2 + standing^2 = torque^2): where the simulation loses, while the axis moves
+    or while it is commanded to stand (see measured_loop).
+    """
     def rel(sim, meas):
         d = float(np.linalg.norm(meas))
         return float(np.linalg.norm(sim - meas) / d) if d > 0.0 else math.nan
     meas = axis.meas_rad
     a0 = float(meas[0])
+    torque = axis.torque_meas_nm
+    scale = float(np.linalg.norm(torque))
+    standing = standing_mask(axis.ref_velocity(t_s))
+    by_phase = {name: float(np.linalg.norm((run.applied_nm - torque)[mask]) / scale)
+                if scale > 0.0 else math.nan
+                for name, mask in (("moving", ~standing), ("standing", standing))}
     return {"angle": rel(run.measured_rad - a0, meas - a0),
             "velocity": rel(np.gradient(run.measured_rad, t_s), np.gradient(meas, t_s)),
-            "torque": rel(run.applied_nm, axis.torque_meas_nm)}
+            "torque": rel(run.applied_nm, torque), "torque_by_phase": by_phase}
 
 
 def read_calibration(path, cutoff_hz):

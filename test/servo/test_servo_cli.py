@@ -71,7 +71,11 @@ def test_measured_loop_is_compared_with_the_rigid_body_reference(tmp_path, capsy
                           "--no-plots")
     assert code == 0
     ml = json.loads((tmp_path / "out" / "summary.json").read_text())["measured_loop"]
-    assert set(ml["none"]) == {"angle", "velocity", "torque"}
+    assert set(ml["none"]) == {"angle", "velocity", "torque", "torque_by_phase"}
+    # the phases split the torque's error: moving^2 + standing^2 = torque^2
+    phase = ml["none"]["torque_by_phase"]
+    assert phase["moving"] ** 2 + phase["standing"] ** 2 == \
+        pytest.approx(ml["none"]["torque"] ** 2, rel=1e-9)
     assert ml["rigid_body"] is not None and "least squares" in ml["rigid_body_source"]
     # the plant is the model file: only the torque sensor's noise separates the two
     assert ml["none"]["torque"] < 0.05
