@@ -46,8 +46,14 @@ def to_um(angle_rad, lead_m):
 
 
 def reversal_indices(velocity):
-    """Return the sample indices where the velocity's sign changes (zeros skipped)."""
-    sign = np.sign(velocity)
+    """
+    Return the sample indices where the velocity's sign changes (standstill skipped).
+
+    A standing sample (``standing_mask``: rounding, not motion) has no sign: a stop whose
+    rounding comes out with the other sign is not a reversal.
+    """
+    v = np.asarray(velocity, dtype=float)
+    sign = np.where(standing_mask(v), 0.0, np.sign(v))
     idx = np.flatnonzero(sign != 0.0)
     if idx.size < 2:
         return np.array([], dtype=int)

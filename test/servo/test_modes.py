@@ -141,3 +141,11 @@ def test_without_the_safety_gate_a_wrong_sign_passes_and_is_still_counted():
     assert study._gated(-0.1, 1.0, 1.0) == -0.1
     assert gated.wrong_sign == study.wrong_sign == 1
     assert study._gated(0.1, 1.0, 1.0) == 0.1 and study.wrong_sign == 1
+
+
+def test_a_stop_whose_rounding_has_the_other_sign_is_not_a_reversal():
+    """Central differences of a constant angle are rounding of either sign, not motion."""
+    from bb_friction_ros.servo.metrics import reversal_indices
+    v = np.concatenate([np.full(50, 2.0), np.full(20, -6.6e-14), np.full(50, -2.0),
+                        np.full(10, 2.2e-14)])
+    assert list(reversal_indices(v)) == [70]
