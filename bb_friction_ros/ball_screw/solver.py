@@ -83,7 +83,77 @@ class Solution:
     budget_exhausted: bool = False                # stopped by ``max_total_iterations``
 
 
-class EquilibriumSolver:
+class _ColdStart:
+    """
+    The cold start of ``EquilibriumSolver``: free balls brought to equilibrium in stages.
+
+    Geometry first with the rates frozen, then the rates with the geometry frozen, then
+    Newton on everything (``cold_solve``); the warm steps never come here.
+    """
+
+    def _stage_geometry(self, x, u, centres, sign, axial_load_n, scale):
+        """
+        Cold-start stage: move balls and nut to balance the cross-section forces.
+
+        Rates frozen; unknowns (xi, zeta) per ball and u; equations F_x, F_z per ball and the
+        axial balance.  Brings the ball into its (three-point) contact state before the
+        weakly determined spin about the loaded diagonal is touched (geometry first with mu = 0
+        and the rates frozen, then the rates, then everything: the order that converged for an
+        independent re-implementation, docs/assumptions_ball_screw.md, Solver).
+        """
+        st = self.settings
+        rows, cols = [0, 2], [0, 1]
+        limit = max(self.disp_limit, self._approach_units(scale))
+        for _ in range(st.max_iterations):
+            t = self.ball.evaluate(x, u, centres, sign, True, self.extra_oversize_m)
+            res = t["force"][:, rows] / scale
+            axial = (t["axial"].sum() + axial_load_n) / scale
+            if max(np.abs(res).max(), abs(axial)) <= st.tolerance:
+                break
+            jac = t["d_force"][:, rows, :] / scale
+            blk = jac[:, :, cols]
+            y = _solve_blocks(blk, res[..., None])[..., 0]
+            z = _solve_blocks(blk, jac[:, :, N_STATE:N_STATE + 1])[..., 0]
+            a_row = t["d_axial"][:, cols] / scale
+            c_u = t["d_axial"][:, N_STATE].sum() / scale
+            schur = np.einsum("ij,ij->", a_row, z) - c_u
+            du = (axial - np.einsum("ij,ij->", a_row, y)) / schur
+            dx = -(y + z * du)
+            big = max(np.abs(dx).max(), abs(du)) / limit
+            step = 1.0 / big if big > 1.0 else 1.0
+            x = x.copy()
+            x[:, cols] += step * dx
+            u = u + step * du
+        return x, u
+
+    def _stage_rates(self, x, u, centres, sign, scale):
+        """Cold-start stage: orbit and spin rates with the geometry frozen (4 x 4 per ball)."""
+        st = self.settings
+        rows, cols = [1, 3, 4, 5], [2, 3, 4, 5]
+        r_b = self.ball.r_b
+        for _ in range(st.max_iterations):
+            t = self.ball.evaluate(x, u, centres, sign, True, self.extra_oversize_m)
+            res = np.concatenate([t["force"], t["moment"] / r_b], axis=1)[:, rows] / scale
+            if np.abs(res).max() <= st.tolerance:
+                break
+            jac = np.concatenate([t["d_force"], t["d_moment"] / r_b], axis=1)[:, rows, :]
+            dx = -_solve_blocks(jac[:, :, cols] / scale, res[..., None])[..., 0]
+            big = np.abs(dx).max() / st.max_step_rate
+            x = x.copy()
+            x[:, cols] += dx / big if big > 1.0 else dx
+        return x
+
+    def cold_solve(self, x, u, centres, sign, axial_load_n, scale, sweeps=3):
+        """Free balls (no B2B) from a rough start: alternate the two stages, then Newton."""
+        for _ in range(sweeps):
+            x, u = self._stage_geometry(x, u, centres, sign, axial_load_n, scale)
+            x = self._stage_rates(x, u, centres, sign, scale)
+        none = np.zeros(0, dtype=int)
+        return self.solve(x, u, centres, sign, axial_load_n, scale, none, none,
+                          np.zeros(0, dtype=bool))
+
+
+class EquilibriumSolver(_ColdStart):
     """Solve ball equilibrium for given geometry, load and candidate B2B pairs."""
 
     def __init__(self, ball_model, b2b_model, settings):
@@ -197,67 +267,6 @@ class EquilibriumSolver:
             dx[rear] += sol[rear, :, 2] * df[:, None]
             dx[front] += sol[front, :, 3] * df[:, None]
         return -dx, du, df
-
-    def _stage_geometry(self, x, u, centres, sign, axial_load_n, scale):
-        """
-        Cold-start stage: move balls and nut to balance the cross-section forces.
-
-        Rates frozen; unknowns (xi, zeta) per ball and u; equations F_x, F_z per ball and the
-        axial balance.  Brings the ball into its (three-point) contact state before the
-        weakly determined spin about the loaded diagonal is touched (geometry first with mu = 0
-        and the rates frozen, then the rates, then everything: the order that converged for an
-        independent re-implementation, docs/assumptions_ball_screw.md, Solver).
-        """
-        st = self.settings
-        rows, cols = [0, 2], [0, 1]
-        limit = max(self.disp_limit, self._approach_units(scale))
-        for _ in range(st.max_iterations):
-            t = self.ball.evaluate(x, u, centres, sign, True, self.extra_oversize_m)
-            res = t["force"][:, rows] / scale
-            axial = (t["axial"].sum() + axial_load_n) / scale
-            if max(np.abs(res).max(), abs(axial)) <= st.tolerance:
-                break
-            jac = t["d_force"][:, rows, :] / scale
-            blk = jac[:, :, cols]
-            y = _solve_blocks(blk, res[..., None])[..., 0]
-            z = _solve_blocks(blk, jac[:, :, N_STATE:N_STATE + 1])[..., 0]
-            a_row = t["d_axial"][:, cols] / scale
-            c_u = t["d_axial"][:, N_STATE].sum() / scale
-            schur = np.einsum("ij,ij->", a_row, z) - c_u
-            du = (axial - np.einsum("ij,ij->", a_row, y)) / schur
-            dx = -(y + z * du)
-            big = max(np.abs(dx).max(), abs(du)) / limit
-            step = 1.0 / big if big > 1.0 else 1.0
-            x = x.copy()
-            x[:, cols] += step * dx
-            u = u + step * du
-        return x, u
-
-    def _stage_rates(self, x, u, centres, sign, scale):
-        """Cold-start stage: orbit and spin rates with the geometry frozen (4 x 4 per ball)."""
-        st = self.settings
-        rows, cols = [1, 3, 4, 5], [2, 3, 4, 5]
-        r_b = self.ball.r_b
-        for _ in range(st.max_iterations):
-            t = self.ball.evaluate(x, u, centres, sign, True, self.extra_oversize_m)
-            res = np.concatenate([t["force"], t["moment"] / r_b], axis=1)[:, rows] / scale
-            if np.abs(res).max() <= st.tolerance:
-                break
-            jac = np.concatenate([t["d_force"], t["d_moment"] / r_b], axis=1)[:, rows, :]
-            dx = -_solve_blocks(jac[:, :, cols] / scale, res[..., None])[..., 0]
-            big = np.abs(dx).max() / st.max_step_rate
-            x = x.copy()
-            x[:, cols] += dx / big if big > 1.0 else dx
-        return x
-
-    def cold_solve(self, x, u, centres, sign, axial_load_n, scale, sweeps=3):
-        """Free balls (no B2B) from a rough start: alternate the two stages, then Newton."""
-        for _ in range(sweeps):
-            x, u = self._stage_geometry(x, u, centres, sign, axial_load_n, scale)
-            x = self._stage_rates(x, u, centres, sign, scale)
-        none = np.zeros(0, dtype=int)
-        return self.solve(x, u, centres, sign, axial_load_n, scale, none, none,
-                          np.zeros(0, dtype=bool))
 
     def _solve_active_kernel(self, x, u, f_hat, centres, sign, axial_load_n, scale, rear, front,
                              max_iterations, elastic=None, tolerance=None):
