@@ -38,8 +38,10 @@ import time
 import numpy as np
 
 from bb_friction_ros import interface
-from bb_friction_ros.bags import (BagError, BagInput, BagWriter, friction_typestore,
-                                  MeasuredAligner, stamp_ns, Topics)
+from bb_friction_ros.alignment import MeasuredAligner
+from bb_friction_ros.bag_types import BagError, friction_typestore, stamp_ns, Topics
+from bb_friction_ros.bag_writer import BagWriter
+from bb_friction_ros.bags import BagInput
 from bb_friction_ros.config import BBFrictionError, bundled_config
 from bb_friction_ros.node_parameters import NodeParameters
 from bb_friction_ros.runner import build_runner, InputAssembler, InputError, \
@@ -533,129 +535,168 @@ def _write_lines(fh, lines):
     fh.write(chunk)
 
 
+class _Sink:
+    """
+    What the stream writes per answer: prediction.csv, the plotted series, the output bag.
+
+    And the RMSE against the measured torque: each answer is held until its measurement
+    when the bag records one (``MeasuredAligner``).
+    """
+
+    def __init__(self, measured, empirical, outbag):
+        self.series = _Series(measured)
+        self.aligner = MeasuredAligner() if measured else None
+        self.empirical = empirical
+        self.outbag = outbag
+        self.line = _row_formats(measured, empirical)
+        self.lines = []
+        self.sq_err, self.n_err = 0.0, 0
+
+    def emit(self, done):
+        """Write the answers the aligner released: ((csv values, series row), measured)."""
+        line, lines, series = self.line, self.lines, self.series
+        for (values, row), meas in done:
+            meas = float(meas)
+            lines.append(line % (values[:6] + (meas,) + values[6:]))
+            series.measure(row, meas)
+            if math.isfinite(meas):
+                self.sq_err += (meas - values[4]) ** 2
+                self.n_err += 1
+
+    def answered(self, pred, stamp_ns_, log_ns, t_in):
+        """Write one answer (``t_in``: perf_counter when its input was taken)."""
+        if self.outbag is not None:
+            self.outbag.publish(pred, stamp_ns_, log_ns, time.perf_counter() - t_in)
+        row = self.series.add(pred)
+        values = csv_values(pred, self.empirical)
+        if self.aligner is None:
+            self.lines.append(self.line % values)
+        else:
+            self.emit(self.aligner.add_prediction(pred.stamp_s, (values, row)))
+
+    def measure(self, stamp_s, value):
+        """Take one measured torque (aligned with the answers by stamp)."""
+        if self.aligner is not None:
+            self.emit(self.aligner.add_measured(stamp_s, value))
+
+    def flush(self, fh, finish=False):
+        """Write what is queued (``finish``: the aligner's held answers too)."""
+        if finish and self.aligner is not None:
+            self.emit(self.aligner.finish())
+        _write_lines(fh, self.lines)
+        if self.outbag is not None:
+            self.outbag.flush()
+
+
+def _feed_block(block, runner, assembler, sink):
+    """
+    Feed one block of messages, in log order, to the runner; write its answers to ``sink``.
+
+    Messages decoded with numpy (``bags.Block``) pass the node's own checks inline; any
+    other is decoded one by one into an Event (``feed_event``).  Each input message is
+    copied to the output bag before what the node publishes for it.
+    """
+    outbag = sink.outbag
+    clock = time.perf_counter
+    items, kinds = block.items, block.kinds
+    fast = block.fast.tolist()
+    stamps, stamps_ns = block.stamp_s.tolist(), block.stamp_ns.tolist()
+    values, velocities = block.value.tolist(), block.velocity.tolist()
+    if outbag is not None:
+        copies, pending = outbag.copies, outbag.pending
+    for i, kind in enumerate(kinds):
+        # a message decoded one by one is decoded before its copy: a damaged one
+        # stops the run before it reaches the output bag
+        ev = block.event(i) if kind is not None and not fast[i] else None
+        if outbag is not None:
+            item = items[i]
+            out_conn = copies.get(item[0].id)
+            if out_conn is not None:
+                pending.append((out_conn, item[1], item[2]))
+        if kind is None:
+            continue
+        if fast[i]:
+            if kind == "measured_torque":
+                sink.measure(stamps[i], values[i])
+                continue
+            if kind == "axial_load":
+                try:
+                    assembler.on_axial_load(values[i])
+                except InputError as err:
+                    runner.reject(err.reason)
+                continue
+            if assembler.load_n is not None:
+                t_in = clock()
+                pred = runner.process(InputSample(
+                    stamps[i], values[i], velocities[i], assembler.load_n))
+                if pred is not None:
+                    sink.answered(pred, stamps_ns[i], items[i][1], t_in)
+                continue
+        if ev is None:      # a nut_state before any load: rejected with its reason
+            ev = block.event(i)
+        if ev.kind == "measured_torque":
+            sink.measure(ev.stamp_s, ev.value)
+            continue
+        t_in = clock()
+        pred = feed_event(ev, runner, assembler)
+        if pred is not None:
+            sink.answered(pred, stamp_ns(ev), items[i][1], t_in)
+
+
 def _stream(src, runner, assembler, out, measured, empirical, outbag, progress,
             interrupted=()):
-    series = _Series(measured)
-    aligner = MeasuredAligner() if measured else None
-    sq_err, n_err = 0.0, 0
+    """Stream the bag through the runner into ``out``; return the summary (``replay``)."""
+    sink = _Sink(measured, empirical, outbag)
     log_min, log_max = math.inf, -math.inf
     bar = None
     if progress:
         from tqdm import tqdm
         bar = tqdm(total=src.total_messages(), desc="replay", unit="msg", file=sys.stderr,
                    mininterval=0.5)
-    line = _row_formats(measured, empirical)
-    lines = []
-    clock = time.perf_counter
-    t0, cpu0 = clock(), time.process_time()
+    t0, cpu0 = time.perf_counter(), time.process_time()
     with open(out / PREDICTION_FILE, "w", newline="") as fh:
         csv.writer(fh).writerow(csv_header(measured, empirical))
-
-        def emit(done):
-            nonlocal sq_err, n_err
-            for (values, row), meas in done:
-                meas = float(meas)
-                lines.append(line % (values[:6] + (meas,) + values[6:]))
-                series.measure(row, meas)
-                if math.isfinite(meas):
-                    sq_err += (meas - values[4]) ** 2
-                    n_err += 1
-
-        def answered(pred, stamp_ns_, log_ns, t_in):
-            if outbag is not None:
-                outbag.publish(pred, stamp_ns_, log_ns, clock() - t_in)
-            row = series.add(pred)
-            values = csv_values(pred, empirical)
-            if aligner is None:
-                lines.append(line % values)
-            else:
-                emit(aligner.add_prediction(pred.stamp_s, (values, row)))
-
         try:
             for block in src.blocks(assembler.nut_joint, all_topics=outbag is not None):
                 if interrupted:
                     raise KeyboardInterrupt
                 if bar is not None:
                     bar.update(len(block.items))
-                items, kinds = block.items, block.kinds
-                fast = block.fast.tolist()
-                stamps, stamps_ns = block.stamp_s.tolist(), block.stamp_ns.tolist()
-                values, velocities = block.value.tolist(), block.velocity.tolist()
-                logs = [items[i][1] for i, kind in enumerate(kinds) if kind is not None]
+                logs = [item[1] for item, kind in zip(block.items, block.kinds)
+                        if kind is not None]
                 if logs:
                     log_min, log_max = min(log_min, min(logs)), max(log_max, max(logs))
-                if outbag is not None:
-                    copies, pending = outbag.copies, outbag.pending
-                for i, kind in enumerate(kinds):
-                    # a message decoded one by one is decoded before its copy: a damaged one
-                    # stops the run before it reaches the output bag
-                    ev = block.event(i) if kind is not None and not fast[i] else None
-                    if outbag is not None:
-                        item = items[i]
-                        out_conn = copies.get(item[0].id)
-                        if out_conn is not None:
-                            pending.append((out_conn, item[1], item[2]))
-                    if kind is None:
-                        continue
-                    if fast[i]:
-                        # decoded with numpy (bags.Block): the node's own checks, inline
-                        if kind == "measured_torque":
-                            if aligner is not None:
-                                emit(aligner.add_measured(stamps[i], values[i]))
-                            continue
-                        if kind == "axial_load":
-                            try:
-                                assembler.on_axial_load(values[i])
-                            except InputError as err:
-                                runner.reject(err.reason)
-                            continue
-                        if assembler.load_n is not None:
-                            t_in = clock()
-                            pred = runner.process(InputSample(
-                                stamps[i], values[i], velocities[i], assembler.load_n))
-                            if pred is not None:
-                                answered(pred, stamps_ns[i], items[i][1], t_in)
-                            continue
-                    if ev is None:      # a nut_state before any load: rejected with its reason
-                        ev = block.event(i)
-                    if ev.kind == "measured_torque":
-                        if aligner is not None:
-                            emit(aligner.add_measured(ev.stamp_s, ev.value))
-                        continue
-                    t_in = clock()
-                    pred = feed_event(ev, runner, assembler)
-                    if pred is not None:
-                        answered(pred, stamp_ns(ev), items[i][1], t_in)
-                _write_lines(fh, lines)
-                if outbag is not None:
-                    outbag.flush()
+                _feed_block(block, runner, assembler, sink)
+                sink.flush(fh)
         except BaseException:
             # keep what was answered before the failure: the partial outputs end where the
             # run stopped (summary.json then says "complete": false)
             try:
-                if aligner is not None:
-                    emit(aligner.finish())
-                _write_lines(fh, lines)
-                if outbag is not None:
-                    outbag.flush()
+                sink.flush(fh, finish=True)
             except Exception:   # the failure that stopped the run is the one reported
                 pass
             raise
-        if aligner is not None:
-            emit(aligner.finish())
-        _write_lines(fh, lines)
+        sink.flush(fh, finish=True)
         runner.settle()     # a step left to follow the last answer, as the node takes it
     wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
     if bar is not None:
         bar.close()
-    stats = runner.stats
     # log time, not header stamps: a header stamp is whatever the driver wrote (one of
     # 2e9 s claimed a 2e9 s recording replayed at 1e10 x real time)
     span = (log_max - log_min) * 1e-9 if log_max > log_min else 0.0
+    summary = _summary(src, runner.stats, sink, span, wall, cpu)
+    if sink.series.rows:
+        plot_replay(out, sink.series)
+    sink.series.close()
+    return summary
+
+
+def _summary(src, stats, sink, span, wall, cpu):
+    """Return summary.json of a stream that ran to its end (``replay`` adds the rest)."""
     summary = {
         "complete": True,
         "messages": dict(src.counts),
-        "samples": series.rows,
+        "samples": sink.series.rows,
         "rejected": dict(stats.rejected),
         "resets": stats.resets,
         "late_samples": stats.late_samples,
@@ -671,9 +712,10 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress,
         # other processes than about replay
         "cpu_s": cpu,
     }
-    if measured:
-        summary["rmse_nm"] = math.sqrt(sq_err / n_err) if n_err else None
-        summary["measured_rows"] = n_err
+    aligner = sink.aligner
+    if aligner is not None:
+        summary["rmse_nm"] = math.sqrt(sink.sq_err / sink.n_err) if sink.n_err else None
+        summary["measured_rows"] = sink.n_err
         summary["measured_alignment"] = {
             "runs": aligner.runs, "late_stamps": aligner.late,
             "stamps_far_ahead": aligner.ahead,
@@ -685,9 +727,6 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress,
             f"{stats.stamp_stalls} nut_state samples carry the previous sample's stamp "
             "(header.stamp not advancing): the model stepped on nut angle, direction and "
             "load only"]
-    if series.rows:
-        plot_replay(out, series)
-    series.close()
     return summary
 
 
