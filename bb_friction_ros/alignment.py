@@ -324,14 +324,25 @@ def measured_torque_at(events, stamps_s):
     """
     Return the measured torque at ``stamps_s`` [N m] run by run, or None if none recorded.
 
-    ``stamps_s`` are prediction stamps in processing order; see ``MeasuredAligner`` for how
-    a looping recording is aligned pass by pass.  Replay and the discrepancy workflow both
-    align the measurement with it, so they agree.
+    ``events``: the recording's events, of which the ``measured_torque`` ones are used
+    (``measured_at`` takes them as columns).
+    """
+    meas = [(e.stamp_s, e.value) for e in events if e.kind == "measured_torque"]
+    return measured_at([t for t, _ in meas], [v for _, v in meas], stamps_s)
+
+
+def measured_at(measured_stamps_s, measured_nm, stamps_s):
+    """
+    Return the measured torque (its stamps and values) at ``stamps_s`` [N m], or None.
+
+    Run by run: ``stamps_s`` are prediction stamps in processing order; see
+    ``MeasuredAligner`` for how a looping recording is aligned pass by pass.  Replay and the
+    discrepancy workflow both align the measurement with it, so they agree.  None when
+    there is no measured sample.
     """
     aligner = MeasuredAligner(max_held=None)     # the arrays are in memory already
-    for e in events:
-        if e.kind == "measured_torque":
-            aligner.add_measured(e.stamp_s, e.value)
+    for t, v in zip(measured_stamps_s, measured_nm):
+        aligner.add_measured(t, v)
     if aligner.samples == 0:
         return None
     # each prediction gets exactly one (index, value), filled in as the aligner releases it:

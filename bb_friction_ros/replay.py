@@ -398,7 +398,8 @@ def replay(bag, out, config=None, settings=NodeParameters(), topics=Topics(), pr
                 raise BagError(f"{exc}; replay stopped there: {marked}") from None
             raise
         if summary["samples"] == 0:
-            raise NothingAccepted(nothing_accepted_message(src, runner.stats, settings))
+            raise NothingAccepted(
+                nothing_accepted_message(src, runner.stats.rejected, settings))
     return summary
 
 
@@ -730,13 +731,17 @@ def _summary(src, stats, sink, span, wall, cpu):
     return summary
 
 
-def nothing_accepted_message(src, stats, settings):
-    """Say why no sample was accepted: reasons with counts, what the bag holds, the fix."""
+def nothing_accepted_message(src, rejected, settings):
+    """
+    Say why no sample was accepted: reasons with counts, what the bag holds, the fix.
+
+    ``rejected``: the inputs refused, by reason (a Counter: ``RunnerStats.rejected``).
+    """
     nut = src.topics.absolute("nut_state")
     load = src.topics.absolute("axial_load")
     lines = [f"{src.path}: no nut_state sample was accepted, so there is nothing to predict."]
-    rejected = ", ".join(f"{r} {n}" for r, n in stats.rejected.most_common()) or "none"
-    lines.append(f"  rejected (reason count): {rejected}")
+    reasons = ", ".join(f"{r} {n}" for r, n in rejected.most_common()) or "none"
+    lines.append(f"  rejected (reason count): {reasons}")
     lines.append("  messages read: " + (", ".join(f"{t} {n}" for t, n in
                                                   sorted(src.counts.items())) or "none"))
     lines.append(f"  topics in the bag: {src.describe()}")
@@ -746,17 +751,17 @@ def nothing_accepted_message(src, stats, settings):
     hints = []
     if src.counts[nut] == 0:
         hints.append(f"{nut} has no messages")
-    if stats.rejected.get("wrong_joint") and names:
+    if rejected.get("wrong_joint") and names:
         hints.append(f"the nut joint is named differently: pass --nut-joint {names[0]}"
                      + (f" (or one of {names})" if len(names) > 1 else ""))
-    if stats.rejected.get("no_load_yet"):
+    if rejected.get("no_load_yet"):
         hints.append(f"{load} has no messages" if src.counts[load] == 0 else
                      f"no valid load arrived on {load} (see its rejections)")
-    if stats.rejected.get("absurd_load"):
+    if rejected.get("absurd_load"):
         hints.append(f"loads exceed max_axial_load_n = {settings.max_axial_load_n:g} N "
                      "(set it in --params-file)")
-    if stats.rejected.get("non_finite") or stats.rejected.get("empty") \
-            or stats.rejected.get("missing_velocity"):
+    if rejected.get("non_finite") or rejected.get("empty") \
+            or rejected.get("missing_velocity"):
         hints.append("the messages carry no finite position, velocity or load")
     if hints:
         lines.append("  hint: " + "; ".join(hints))

@@ -537,6 +537,11 @@ class ModelRunner(_Answers, _Steps):
         """Whether a step due at the last sample waits to be taken after its answer."""
         return self._pending is not None
 
+    @property
+    def state(self):
+        """Return the latest model step's result (the screw's own torque), or None."""
+        return self._state
+
     def settle(self):
         """
         Take the step due at the last sample, answered before it (module docstring).

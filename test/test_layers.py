@@ -20,7 +20,7 @@ LAYERS = {
     2: {"linear_bearing", "ball_screw", "empirical_terms", "model_file", "acceleration"},
     3: {"runner", "live", "bags", "interface", "node_parameters", "feedforward", "schedule",
         "inputs", "look_ahead", "friction_sign", "bag_types", "bag_writer", "alignment",
-        "live_health"},
+        "live_health", "drive"},
     4: {"replay", "node", "ros_inputs", "node_entry", "harness", "pytest_plugin",
         "trajectories", "planned"},
     5: {"discrepancy", "sweep", "demo", "reproduce", "servo"},

@@ -150,7 +150,9 @@ def report_lines(a, summary):
     if p.get("rejected"):
         lines += [f"`{p['rejected']['name']}` was chosen on the fit part but does not improve "
                   "the held-out part, so it is not adopted.", ""]
-    lines += [f"Cost: {p['model_runs']} model runs over the recording (the config's values, "
+    base = "the config's values kept from the prediction's own run, not run again; " if \
+        p.get("base_run_kept") else "the config's values, "
+    lines += [f"Cost: {p['model_runs']} model runs over the recording ({base}"
               f"a bracket per candidate, the refinement; {p.get('coarse_runs', 0)} of them "
               f"{p.get('coarse_step_factor', 1)}x coarser: the smooth candidates' search) in "
               f"{p['model_run_wall_s']:.1f} s on {p['workers']} worker(s), "

@@ -87,10 +87,14 @@ class PhysicalSearch:
     coarse_runs: int = 0         # of ``runs``: at the coarse step (smooth candidates)
     tie: bool = False            # chosen on a tie with its twin (prefer_model_parameter_on_tie)
     heldout_judged: bool = True  # False: its change is too small there (unseen_on_hold)
+    # the base run (the config's values) is the prediction's own run over the recording,
+    # kept: the model ran over the recording once before its trials (trials.base_run)
+    base_run_kept: bool = False
 
     def as_dict(self):
         """Return summary.json → ``physical``."""
         return {"model_runs": self.runs, "model_run_wall_s": self.wall_s,
+                "base_run_kept": self.base_run_kept,
                 "replay_path_runs": self.replay_runs,
                 "selections": self.selections,
                 "workers": self.workers, "threads": self.threads,

@@ -92,6 +92,7 @@ class PhysicalSelection:
                                               usable=self.ok, none_score=none.score,
                                               threads=ps.threads,
                                               coarse_step_factor=ps.coarse_step_factor)
+        search.base_run_kept = runner.base.first_pass
         try:
             cfg = load_model_file(self.physics.config_path)[0]
             self.bases = {k.name: k.base_value(cfg) for k in PHYSICAL.values()}
