@@ -542,6 +542,20 @@ class ModelRunner(_Answers, _Steps):
         """Return the latest model step's result (the screw's own torque), or None."""
         return self._state
 
+    def probe(self):
+        """
+        Return a copy that answers a what-if sample and leaves this runner as it is.
+
+        Shallow but for what processing changes in place: the schedule, the counters (fresh)
+        and the terms' live state; the screw's step rebinds its arrays (``profile_seed``).
+        """
+        probe = copy.copy(self)
+        probe.screw = copy.copy(self.screw)
+        probe.schedule = copy.copy(self.schedule)
+        probe._live_terms = copy.deepcopy(self._live_terms)
+        probe.stats = RunnerStats()
+        return probe
+
     def settle(self):
         """
         Take the step due at the last sample, answered before it (module docstring).

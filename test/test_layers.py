@@ -21,7 +21,7 @@ LAYERS = {
     3: {"runner", "live", "bags", "interface", "node_parameters", "feedforward", "schedule",
         "inputs", "look_ahead", "friction_sign", "bag_types", "bag_writer", "alignment",
         "live_health", "drive"},
-    4: {"replay", "node", "ros_inputs", "node_entry", "harness", "pytest_plugin",
+    4: {"replay", "replay_outputs", "node", "ros_inputs", "node_entry", "harness", "pytest_plugin",
         "trajectories", "planned"},
     5: {"discrepancy", "sweep", "demo", "reproduce", "servo"},
     6: {"cli", "cli_flags"},
