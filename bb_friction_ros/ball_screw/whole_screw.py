@@ -515,7 +515,8 @@ class WholeScrew:
             # ``step``'s bookkeeping of the steps done: the state is the buffer's (views
             # into it; a copy of this model copies them, see __copy__).
             self.nut_angle = float(angles[done - 1])
-            self.time += done * dt_s
+            for _ in range(done):
+                self.time += dt_s       # as ``step`` sums it, step by step
             u, up = (v[7], v[8]) if elastic else (float(v[7][0]), float(v[8][0]))
             self._prev = (v[1], up, v[3], float(state[16 * self.n]))
             self._state = (v[0], u, sign, load_sign)
