@@ -586,8 +586,8 @@ class ModelRunner:
         ``extra``: the empirical torque of the sample (its terms' one evaluation), part of the
         feedforward held after the step.
         """
-        self._substeps_to(sample)
-        self._take_step(sample, sample.stamp_s - self._model_stamp)
+        between = self._substeps_to(sample)
+        self._take_step(sample, sample.stamp_s - self._model_stamp, between)
         self._update_held(self._state_feedforward(extra, sample), sample.nut_velocity_rad_s)
 
     def _state_feedforward(self, extra, sample):
@@ -681,14 +681,16 @@ class ModelRunner:
         inputs (angle, velocity, load and stamp linear in between), so its step size is the
         schedule's, not the input rate's.  Not across a change of direction: the path
         between two samples of opposite directions is unknown (the reversal steps at once).
+        A model with ``step_path`` takes them with the sample's own step in one call: they
+        are returned for ``_take_step``, else stepped here (and none returned).
         """
         if _sign(sample.nut_velocity_rad_s) != self._model_direction \
                 or self._model_direction == 0.0:
-            return
+            return ()
         turned = abs(sample.nut_angle_rad - self._model_angle)
         n = math.ceil(turned / (self.step_rad * self.scale) - ANGLE_RESOLUTION_RAD)
         if n <= 1:
-            return
+            return ()
         if n > MAX_SUBSTEPS:
             # a jump of the angle (a gap in the input, an encoder glitch): not motion the
             # schedule can follow step by step; crossed in MAX_SUBSTEPS coarser steps
@@ -700,16 +702,22 @@ class ModelRunner:
         dw = sample.nut_velocity_rad_s - w0
         df = sample.axial_load_n - f0
         dt = sample.stamp_s - t0
+        path = hasattr(self.screw, "step_path")
+        points = []
         for i in range(1, n):
             r = i / n
             between = InputSample(t0 + r * dt, a0 + r * da, w0 + r * dw, f0 + r * df)
-            self._step(between, dt / n, answered=False)
+            if path:
+                points.append(between)
+            else:
+                self._step(between, dt / n, answered=False)
             self.stats.substeps += 1
         self._model_stamp = t0 + (n - 1) / n * dt
+        return points
 
-    def _take_step(self, sample, dt_s):
-        """Step the model to ``sample`` and make it the schedule's reference."""
-        self._state = self._step(sample, dt_s)
+    def _take_step(self, sample, dt_s, between=()):
+        """Step the model to ``sample`` (through ``between`` first) and make it the reference."""
+        self._state = self._step(sample, dt_s, between=between)
         self._model_stamp = sample.stamp_s
         self._model_angle = sample.nut_angle_rad
         self._model_velocity = sample.nut_velocity_rad_s
@@ -737,14 +745,26 @@ class ModelRunner:
         self._coarsened = True
         self.stats.coarsenings += 1
 
-    def _step(self, sample, dt_s, answered=True):
+    def _step(self, sample, dt_s, answered=True, between=()):
         t0 = time.perf_counter()
-        res = self.screw.step(sample.nut_angle_rad, sample.nut_velocity_rad_s,
-                              sample.axial_load_n, dt_s, substep=not answered)
-        self.stats.last_step_wall_s = took = time.perf_counter() - t0
-        mean = self._step_time_s
-        self._step_time_s = took if mean is None else mean + STEP_TIME_WEIGHT * (took - mean)
-        self.stats.model_steps += 1
+        if between:
+            # the sub-steps and this step in one call (WholeScrew.step_path); each step's
+            # wall time is the call's share
+            points = list(between) + [sample]
+            res = self.screw.step_path([p.nut_angle_rad for p in points],
+                                       [p.nut_velocity_rad_s for p in points],
+                                       [p.axial_load_n for p in points], dt_s)
+            self.stats.nonconverged_steps += res.substeps_not_converged
+        else:
+            points = (sample,)
+            res = self.screw.step(sample.nut_angle_rad, sample.nut_velocity_rad_s,
+                                  sample.axial_load_n, dt_s, substep=not answered)
+        self.stats.last_step_wall_s = took = (time.perf_counter() - t0) / len(points)
+        for _ in points:
+            mean = self._step_time_s
+            self._step_time_s = took if mean is None \
+                else mean + STEP_TIME_WEIGHT * (took - mean)
+        self.stats.model_steps += len(points)
         if not res.converged:
             self.stats.nonconverged_steps += 1
         if answered:    # a sub-step's state is never answered: nothing to convert
@@ -910,8 +930,18 @@ def look_ahead_profile(seed, horizon_periods=2.0, n_points=3, should_stop=None):
     d_angle = math.copysign(horizon / (n_points - 1), w)
     dt = d_angle / w
     n_sub = _profile_substeps(horizon, n_points, seed.max_step_rad)
+    path = hasattr(screw, "step_path")
     for i in range(1, n_points):
-        for j in range(1, n_sub + 1):
+        if path:
+            # a point's sub-steps and its answered step in one call (WholeScrew.step_path)
+            if should_stop is not None and should_stop():
+                return None
+            points = [s.nut_angle_rad + d_angle * (i - 1 + j / n_sub)
+                      for j in range(1, n_sub + 1)]
+            res = screw.step_path(points, [w] * n_sub, [s.axial_load_n] * n_sub, dt / n_sub)
+            converged = converged and bool(res.converged) and not res.substeps_not_converged
+            angle = points[-1]
+        for j in range(1, n_sub + 1) if not path else ():
             if should_stop is not None and should_stop():
                 return None
             angle = s.nut_angle_rad + d_angle * (i - 1 + j / n_sub)

@@ -525,8 +525,9 @@ class WholeScrew:
         if done < k:
             return done, None, missed, int(result[10])
         rear, front = groups[0].tolist(), groups[1].tolist()
-        res = self._result(float(w[k - 1]), float(loads[k - 1]), result[5], result[6],
-                           result[7], result[8], bool(result[1]), int(result[3]), blk[1],
+        loss_sum, torque_sum, b2b_sum, load_max = result[5:9].tolist()
+        res = self._result(float(w[k - 1]), float(loads[k - 1]), loss_sum, torque_sum,
+                           b2b_sum, load_max, bool(result[1]), int(result[3]), blk[1],
                            blk[2], blk[4], blk[8:12].T, blk[5],
                            _groups(rear, front, blk[7, :len(rear)].tolist()),
                            time.perf_counter())

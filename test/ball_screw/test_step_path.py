@@ -160,3 +160,15 @@ def test_step_path_refuses_points_that_do_not_match():
         screw.step_path([0.1, 0.2], [1.0], [1500.0, 1500.0], DT_S)
     with pytest.raises(ValueError, match="step_path"):
         screw.step_path([], [], [], DT_S)
+
+
+def test_step_path_returns_python_numbers(model, config):
+    """Its scalars are floats, as ``step``'s (a numpy scalar prints as np.float64(...))."""
+    screw = WholeScrew(config, model)
+    for steps in _paths(3):
+        r = screw.step_path(*zip(*steps), DT_S)
+    for name in ("t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n",
+                 "torque_total_nm", "torque_b2g_nm", "torque_b2b_nm", "drive_power_w",
+                 "loss_w", "power_balance_error"):
+        assert type(getattr(r, name)) is float, name
+    assert type(r.iterations) is int and type(r.converged) is bool
