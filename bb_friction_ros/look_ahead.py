@@ -119,8 +119,18 @@ def look_ahead_profile(seed, horizon_periods=2.0, n_points=3, should_stop=None):
     d_angle = math.copysign(horizon / (n_points - 1), w)
     dt = d_angle / w
     n_sub = _profile_substeps(horizon, n_points, seed.max_step_rad)
+    path = hasattr(screw, "step_path")
     for i in range(1, n_points):
-        for j in range(1, n_sub + 1):
+        if path:
+            # a point's sub-steps and its answered step in one call (WholeScrew.step_path)
+            if should_stop is not None and should_stop():
+                return None
+            points = [s.nut_angle_rad + d_angle * (i - 1 + j / n_sub)
+                      for j in range(1, n_sub + 1)]
+            res = screw.step_path(points, [w] * n_sub, [s.axial_load_n] * n_sub, dt / n_sub)
+            converged = converged and bool(res.converged) and not res.substeps_not_converged
+            angle = points[-1]
+        for j in range(1, n_sub + 1) if not path else ():
             if should_stop is not None and should_stop():
                 return None
             angle = s.nut_angle_rad + d_angle * (i - 1 + j / n_sub)

@@ -315,8 +315,8 @@ class _Steps:
         ``extra``: the empirical torque of the sample (its terms' one evaluation), part of the
         feedforward held after the step.
         """
-        self._substeps_to(sample, plan)
-        self._take_step(sample, sample.stamp_s - self.schedule.stamp)
+        between = self._substeps_to(sample, plan)
+        self._take_step(sample, sample.stamp_s - self.schedule.stamp, between)
         self._update_held(self._state_feedforward(extra, sample), sample.nut_velocity_rad_s)
 
     def _substeps_to(self, sample, plan):
@@ -324,11 +324,13 @@ class _Steps:
         Step along the line from the last step to ``sample``, in ``plan.steps`` equal steps.
 
         Angle, velocity, load and stamp linear in between (``Schedule._steps_to``); the last
-        of them is the sample's own step (``_take_step``).
+        of them is the sample's own step (``_take_step``).  A model with ``step_path`` takes
+        them with the sample's own step in one call: they are returned for ``_take_step``,
+        else stepped here (and none returned).
         """
         n = plan.steps
         if n <= 1:
-            return
+            return ()
         if plan.long_jump:
             self.stats.long_jumps += 1
         s = self.schedule
@@ -337,26 +339,44 @@ class _Steps:
         dw = sample.nut_velocity_rad_s - w0
         df = sample.axial_load_n - f0
         dt = sample.stamp_s - t0
+        path = hasattr(self.screw, "step_path")
+        points = []
         for i in range(1, n):
             r = i / n
             between = InputSample(t0 + r * dt, a0 + r * da, w0 + r * dw, f0 + r * df)
-            self._step(between, dt / n, answered=False)
+            if path:
+                points.append(between)
+            else:
+                self._step(between, dt / n, answered=False)
             self.stats.substeps += 1
         s.stamp = t0 + (n - 1) / n * dt
+        return points
 
-    def _take_step(self, sample, dt_s):
-        """Step the model to ``sample`` and make it the schedule's reference."""
-        self._state = self._step(sample, dt_s)
+    def _take_step(self, sample, dt_s, between=()):
+        """Step the model to ``sample`` (through ``between`` first) and make it the reference."""
+        self._state = self._step(sample, dt_s, between=between)
         self.stats.coarse_steps += self.schedule.stepped(sample)
 
-    def _step(self, sample, dt_s, answered=True):
+    def _step(self, sample, dt_s, answered=True, between=()):
         t0 = time.perf_counter()
-        res = self.screw.step(sample.nut_angle_rad, sample.nut_velocity_rad_s,
-                              sample.axial_load_n, dt_s, substep=not answered)
-        self.stats.last_step_wall_s = took = time.perf_counter() - t0
-        mean = self._step_time_s
-        self._step_time_s = took if mean is None else mean + STEP_TIME_WEIGHT * (took - mean)
-        self.stats.model_steps += 1
+        if between:
+            # the sub-steps and this step in one call (WholeScrew.step_path); each step's
+            # wall time is the call's share
+            points = list(between) + [sample]
+            res = self.screw.step_path([p.nut_angle_rad for p in points],
+                                       [p.nut_velocity_rad_s for p in points],
+                                       [p.axial_load_n for p in points], dt_s)
+            self.stats.nonconverged_steps += res.substeps_not_converged
+        else:
+            points = (sample,)
+            res = self.screw.step(sample.nut_angle_rad, sample.nut_velocity_rad_s,
+                                  sample.axial_load_n, dt_s, substep=not answered)
+        self.stats.last_step_wall_s = took = (time.perf_counter() - t0) / len(points)
+        for _ in points:
+            mean = self._step_time_s
+            self._step_time_s = took if mean is None \
+                else mean + STEP_TIME_WEIGHT * (took - mean)
+        self.stats.model_steps += len(points)
         if not res.converged:
             self.stats.nonconverged_steps += 1
         if answered:    # a sub-step's state is never answered: nothing to convert
