@@ -157,7 +157,7 @@ def _run_reproduce(args):
 
 
 def _add_replay_parser(sub):
-    from bb_friction_ros.bags import Topics
+    from bb_friction_ros.cli_flags import add_topic_arguments
     p = sub.add_parser("replay", help="run a rosbag2 recording (sqlite3 or mcap) through the "
                        "live node's model path, offline")
     p.add_argument("bag", help="rosbag2 directory")
@@ -169,7 +169,7 @@ def _add_replay_parser(sub):
     p.add_argument("--model-rate-hz", type=float, help="least model steps per second of input "
                    "time (the floor when the nut creeps or stands)")
     p.add_argument("--model-step-deg", type=float, help="nut rotation between model steps")
-    Topics.add_arguments(p)
+    add_topic_arguments(p)
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--no-bag", action="store_true", help="write no output bag (DIR/bag/), "
                    "only the CSV, summary and plots")
@@ -197,12 +197,12 @@ def _replay_settings(args):
 
 
 def _run_replay(args):
-    from bb_friction_ros.bags import Topics
+    from bb_friction_ros.cli_flags import topics_from_args
     from bb_friction_ros.replay import replay
     settings = _replay_settings(args)
     try:
         summary = replay(args.bag, args.out, config=args.config, settings=settings,
-                         topics=Topics.from_args(args), progress=not args.no_progress,
+                         topics=topics_from_args(args), progress=not args.no_progress,
                          write_bag=not args.no_bag)
     except (FileNotFoundError, BBFrictionError) as exc:   # BagError, NothingAccepted included
         print(f"bb-friction replay: {exc}", file=sys.stderr)

@@ -50,6 +50,9 @@ def field(default, unit, doc, lo=None, hi=None, lo_open=False, hi_open=False):
 # 8 GiB, a third of a 24 GiB workstation.  The default of every ``*memory_limit_mib``
 # setting; raise the setting, not this, for a bigger machine.
 MEMORY_LIMIT_MIB = 8192.0
+# The address the package's own Dask clusters (sweeps, physical trials) listen on: the
+# loopback interface, so no worker is reachable from the network.
+LOCALHOST = "127.0.0.1"
 
 
 def format_bytes(n):

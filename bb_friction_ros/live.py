@@ -57,11 +57,9 @@ import threading
 import time
 from typing import Callable
 
-from bb_friction_ros.runner import InputError, look_ahead_profile, profile_due
-
-# Levels of diagnostic_msgs/DiagnosticStatus (bytes there; plain ints here, no ROS).
-OK, WARN, ERROR = 0, 1, 2
-LEVEL_NAMES = {OK: "OK", WARN: "WARN", ERROR: "ERROR"}
+from bb_friction_ros.inputs import InputError
+from bb_friction_ros.live_health import ERROR, LiveHealth, OK, WARN  # noqa: F401
+from bb_friction_ros.look_ahead import look_ahead_profile, profile_due
 # The thread that answers, so a publisher may keep one reusable message per thread.
 INLINE, MODEL = 0, 1
 # How long the model thread waits for work before it looks at the stop flag again [s].
@@ -87,7 +85,110 @@ class Outputs:
     log: Callable
 
 
-class LiveSchedule:
+class _LookAheadProfiles:
+    """
+    The look-ahead side of ``LiveSchedule``: when a profile starts, and its steps in gaps.
+
+    After a step, once per model period of motion (``runner.profile_due``), the model thread
+    steps a copy of the state ahead, giving way to the next step; each of the copy's steps
+    waits for an idle gap of the input thread (``LiveSchedule.flush`` marks one).
+    """
+
+    def _init_profiles(self):
+        self._profile_seed = None   # (seed, stamp, gap) handed to the model thread
+        self._deferred_seed = None  # the same, captured inline, handed over by ``flush``
+        self._gaps = 0              # idle gaps of the input thread so far (``flush``)
+        self._gated = False         # a profile's step waits for the next gap
+        self._profiled = None       # the seed of the last profile published
+        self._profiles = 0
+        self._profiles_abandoned = 0
+        self._profiles_not_started = 0
+        self._profile_errors = 0
+
+    def _profile_wanted(self, runner, stepped, sample):
+        """
+        Whether the step just taken for ``sample`` should start a look-ahead profile.
+
+        Once per model period of motion (``runner.profile_due``), not while the schedule is
+        coarser than configured (a model that could not keep its steps has no CPU for a
+        look-ahead), and only if it can end before the next step is due
+        (``runner.profile_fits``; counted in ``profiles_not_started`` otherwise): at
+        20 rev/s every profile started was abandoned at the next step, 0 published per
+        second, and the ones started cost 0.3-0.4 of a core beside 1.8 deg steps.
+        """
+        if not (stepped and runner.scale == 1.0
+                and profile_due(self._profiled, sample)):
+            return False
+        if runner.profile_fits(sample, *self._profile_shape):
+            return True
+        with self._lock:
+            self._profiles_not_started += 1
+        return False
+
+    def _gap_gate(self, seen):
+        """
+        Wait for an idle gap of the input thread, then say whether a profile should stop.
+
+        A look-ahead profile's ``should_stop``.  ``seen``: a one-item list, the gap count
+        the profile's last step began in (steps wait for a later gap, or GAP_WAIT_S when
+        none comes).  Returns True (abandon) when an input waits for the model thread, the
+        input thread steps, or the node stops.
+        """
+        with self._lock:
+            self._gated = True
+            self._wake.wait_for(lambda: self._gaps > seen[0] or self._queue or self._stop,
+                                timeout=GAP_WAIT_S)
+            self._gated = False
+            seen[0] = self._gaps
+            return bool(self._busy or self._stepping or self._queue or self._stop)
+
+    def _publish_profile(self, seed_stamp):
+        seed, stamp, gap = seed_stamp
+        horizon, points = self._profile_shape
+        seen = [gap]
+        try:
+            out = look_ahead_profile(seed, horizon, points,
+                                     should_stop=lambda: self._gap_gate(seen))
+        except Exception as exc:     # a failed look-ahead must not stop the answers
+            with self._lock:
+                self._profile_errors += 1
+            self.outputs.log("error", f"look-ahead profile failed: {exc!r}")
+            return
+        if out is None:
+            with self._lock:
+                self._profiles_abandoned += 1
+            return
+        angles, torques, converged = out
+        self.outputs.profile(seed.sample, stamp, angles, torques, converged)
+        self._profiled = seed
+        with self._lock:
+            self._profiles += 1
+
+    @property
+    def deferred(self):
+        """Whether ``flush`` has work: changed groups to publish or a profile to hand over."""
+        return self._deferred_groups or self._deferred_seed is not None
+
+    def flush(self):
+        """Publish changed groups and hand a profile's seed to the model thread (if any)."""
+        if self._deferred_groups:
+            self._deferred_groups = False
+            self.publish_groups()
+        seed, self._deferred_seed = self._deferred_seed, None
+        # The input thread is idle from here to its next input: a gap.  A look-ahead
+        # profile steps only in such gaps (``_gap_gate``), so that it runs while the input
+        # thread waits instead of beside it: on two cores shared with the controller, a
+        # profile running when an input arrived delayed it by 0.25-0.7 ms (p99), whether
+        # the profile held the GIL or not (docs/node_latency.md).
+        with self._lock:
+            self._gaps += 1
+            if seed is not None:
+                self._profile_seed = seed
+            if seed is not None or self._gated:
+                self._wake.notify()     # not at every input: a wake-up costs the GIL
+
+
+class LiveSchedule(LiveHealth, _LookAheadProfiles):
     """
     The queue, the inline answers, the model thread, shedding, the profile and the counters.
 
@@ -108,10 +209,6 @@ class LiveSchedule:
         self._busy = False          # the model thread owns the runner until it clears this
         self._stepping = False      # the input thread is stepping the model
         self._profiling = False     # the model thread is stepping a copy for a profile
-        self._profile_seed = None
-        self._gaps = 0              # idle gaps of the input thread so far (``flush``)
-        self._gated = False         # a profile's step waits for the next gap
-        self._profiled = None       # the seed of the last profile published
         self._runner = runner
         self._assembler = assembler
         self._apply(params)
@@ -120,10 +217,6 @@ class LiveSchedule:
         self._received = collections.Counter()
         self._published = 0
         self._inline = 0
-        self._profiles = 0
-        self._profiles_abandoned = 0
-        self._profiles_not_started = 0
-        self._profile_errors = 0
         self._ff_held = 0
         self._latest = None
         self._latest_stamp = None
@@ -144,20 +237,13 @@ class LiveSchedule:
         # for that, not delaying an input that arrived during a step (docs/node_latency.md)
         self.defer_to_idle = False
         self._deferred_groups = False
-        self._deferred_seed = None
+        self._init_profiles()
 
     def _apply(self, params):
         self._params = params
         self._max_age_ns = int(params.max_answer_age_s * 1e9)
         self._max_backlog_ns = int(min(params.max_backlog_s, params.max_answer_age_s) * 1e9)
         self._profile_shape = (params.profile_horizon_periods, params.profile_points)
-
-    def _window_start(self, now):
-        stats = self._runner.stats
-        return {"t": now, "steps": stats.model_steps, "shed": getattr(self, "_shed", 0),
-                "stalls": stats.stamp_stalls, "coarse": stats.coarse_steps,
-                "skipped": stats.skipped_steps, "resets": stats.resets, "first_stamp": None,
-                "last_stamp": None, "accepted": 0}
 
     # --- life cycle -----------------------------------------------------------------------
     def start(self):
@@ -265,29 +351,6 @@ class LiveSchedule:
                                        self._gaps + 1 if settled else self._gaps)
         if not (self.defer_to_idle and self.deferred):
             self.flush()        # nothing left to do for this input: the gap begins
-
-    @property
-    def deferred(self):
-        """Whether ``flush`` has work: changed groups to publish or a profile to hand over."""
-        return self._deferred_groups or self._deferred_seed is not None
-
-    def flush(self):
-        """Publish changed groups and hand a profile's seed to the model thread (if any)."""
-        if self._deferred_groups:
-            self._deferred_groups = False
-            self.publish_groups()
-        seed, self._deferred_seed = self._deferred_seed, None
-        # The input thread is idle from here to its next input: a gap.  A look-ahead
-        # profile steps only in such gaps (``_gap_gate``), so that it runs while the input
-        # thread waits instead of beside it: on two cores shared with the controller, a
-        # profile running when an input arrived delayed it by 0.25-0.7 ms (p99), whether
-        # the profile held the GIL or not (docs/node_latency.md).
-        with self._lock:
-            self._gaps += 1
-            if seed is not None:
-                self._profile_seed = seed
-            if seed is not None or self._gated:
-                self._wake.notify()     # not at every input: a wake-up costs the GIL
 
     def _backlog(self, recv_ns):
         """Whether an input received at ``recv_ns`` has waited longer than max_backlog_s."""
@@ -405,85 +468,6 @@ class LiveSchedule:
             self._log_model_error(runner)
         return bool(stepped)
 
-    def _log_model_error(self, runner):
-        self.outputs.log("error", f"model step failed: {runner.stats.last_error}; state reset")
-
-    def _profile_wanted(self, runner, stepped, sample):
-        """
-        Whether the step just taken for ``sample`` should start a look-ahead profile.
-
-        Once per model period of motion (``runner.profile_due``), not while the schedule is
-        coarser than configured (a model that could not keep its steps has no CPU for a
-        look-ahead), and only if it can end before the next step is due
-        (``runner.profile_fits``; counted in ``profiles_not_started`` otherwise): at
-        20 rev/s every profile started was abandoned at the next step, 0 published per
-        second, and the ones started cost 0.3-0.4 of a core beside 1.8 deg steps.
-        """
-        if not (stepped and runner.scale == 1.0
-                and profile_due(self._profiled, sample)):
-            return False
-        if runner.profile_fits(sample, *self._profile_shape):
-            return True
-        with self._lock:
-            self._profiles_not_started += 1
-        return False
-
-    def _reset_warning(self, resets, stamp_s):
-        """
-        Log a stamps-backwards reset, at most once per diagnostics period (counted always).
-
-        A looping source resets at every loop, and a flaky one may reset at every sample:
-        one line per reset flooded the log (1191 lines in 5 s).
-        """
-        now = self._monotonic()
-        logged, t_logged = self._resets_logged
-        if now - t_logged < 1.0 / self._params.diagnostics_rate_hz:
-            return
-        self._resets_logged = (resets, now)
-        more = resets - logged - 1
-        self.outputs.log("warning", f"input stamps went backwards at {stamp_s:.6f} s: "
-                         "model state reset" + (f" ({more} more resets since the last "
-                                                "warning)" if more > 0 else ""))
-
-    def _gap_gate(self, seen):
-        """
-        Wait for an idle gap of the input thread, then say whether a profile should stop.
-
-        A look-ahead profile's ``should_stop``.  ``seen``: a one-item list, the gap count
-        the profile's last step began in (steps wait for a later gap, or GAP_WAIT_S when
-        none comes).  Returns True (abandon) when an input waits for the model thread, the
-        input thread steps, or the node stops.
-        """
-        with self._lock:
-            self._gated = True
-            self._wake.wait_for(lambda: self._gaps > seen[0] or self._queue or self._stop,
-                                timeout=GAP_WAIT_S)
-            self._gated = False
-            seen[0] = self._gaps
-            return bool(self._busy or self._stepping or self._queue or self._stop)
-
-    def _publish_profile(self, seed_stamp):
-        seed, stamp, gap = seed_stamp
-        horizon, points = self._profile_shape
-        seen = [gap]
-        try:
-            out = look_ahead_profile(seed, horizon, points,
-                                     should_stop=lambda: self._gap_gate(seen))
-        except Exception as exc:     # a failed look-ahead must not stop the answers
-            with self._lock:
-                self._profile_errors += 1
-            self.outputs.log("error", f"look-ahead profile failed: {exc!r}")
-            return
-        if out is None:
-            with self._lock:
-                self._profiles_abandoned += 1
-            return
-        angles, torques, converged = out
-        self.outputs.profile(seed.sample, stamp, angles, torques, converged)
-        self._profiled = seed
-        with self._lock:
-            self._profiles += 1
-
     # --- parameters -----------------------------------------------------------------------
     def apply(self, params, runner=None):
         """
@@ -500,143 +484,6 @@ class LiveSchedule:
             self._assembler.nut_joint = params.nut_joint
             self._assembler.max_axial_load_n = params.max_axial_load_n
             self._apply(params)
-
-    # --- diagnostics ----------------------------------------------------------------------
-    def values(self, advance=True):
-        """Return the counters as diagnostics key/values; ``advance`` starts a new window."""
-        with self._lock:
-            return self._values(advance)
-
-    def _values(self, advance):
-        stats = self._runner.stats
-        now = self._monotonic()
-        w = self._window
-        elapsed = max(now - w["t"], 1e-9)
-        latest = self._latest
-        values = {
-            "ready": self.ready,
-            "model_rate_hz": (stats.model_steps - w["steps"]) / elapsed,
-            "model_steps": stats.model_steps,
-            "last_step_s": stats.last_step_wall_s,
-            "nonconverged_steps": stats.nonconverged_steps,
-            "feedforward_held": self._ff_held,
-            "feedforward_zeroed": stats.feedforward_zeroed,
-            "model_step_deg": math.degrees(self._runner.model_step_rad),
-            "coarse_steps": stats.coarse_steps,
-            "stamp_stalls": stats.stamp_stalls,
-            "term_restarts": stats.term_restarts,
-            "queue_length": len(self._queue),
-            "skipped_inputs": self._dropped + stats.skipped_steps,
-            "skipped_steps": stats.skipped_steps,
-            "dropped_inputs": self._dropped,
-            "shed_inputs": self._shed,
-            "shed_since_last_report": self._shed - w["shed"],
-            "max_answer_age_s": 1e-9 * self._max_age_ns,
-            "published": self._published,
-            "answered_inline": self._inline,
-            "profiles": self._profiles,
-            "profiles_abandoned": self._profiles_abandoned,
-            "profiles_not_started": self._profiles_not_started,
-            "profile_errors": self._profile_errors,
-            "resets": stats.resets,
-            "late_samples": stats.late_samples,
-            "lag_s": 0.0 if latest is None else latest.model_age_s,
-            "received_nut_state": self._received["nut_state"],
-            "received_axial_load": self._received["axial_load"],
-            "input_age_s": (now - (self._t_start if self._last_input is None
-                                   else self._last_input)),
-            "rejected_total": sum(stats.rejected.values()),
-            "rejected_nut_state": stats.rejected_nut_state,
-        }
-        for reason, n in sorted(stats.rejected.items()):
-            values[f"rejected_{reason}"] = n
-        if advance:
-            self._window = self._window_start(now)
-        return values, w, latest is None or latest.converged
-
-    @property
-    def params(self):
-        """Return the node's parameters now (NodeParameters)."""
-        return self._params
-
-    @property
-    def held_load_n(self):
-        """Return the axial load held for the next nut state [N], or None before any."""
-        return self._assembler.load_n
-
-    def status(self, extra_warnings=()):
-        """
-        Return (level, message, values) of the schedule's health and start a new window.
-
-        ``extra_warnings``: the node's own notes (another publisher, unknown parameters).
-        """
-        with self._lock:
-            values, w, converged = self._values(advance=True)
-            notes, self._notes = self._notes, []
-            p = self._params
-            stats = self._runner.stats
-        errors = []
-        if values["input_age_s"] > p.input_timeout_s:
-            errors.append(f"no nut_state for {values['input_age_s']:.3g} s (input_timeout_s "
-                          f"= {p.input_timeout_s:g} s)" if self._last_input is not None
-                          else f"no nut_state received yet ({values['input_age_s']:.3g} s "
-                          "since start)")
-        warnings = []
-        floor, span_s = self._expected_steps(w, p)
-        steps = values["model_steps"] - w["steps"]
-        if steps < (1.0 - p.model_rate_tolerance) * floor:
-            warnings.append(f"model rate low: {steps} steps in {span_s:.3g} s of input, "
-                            f"expected at least {floor:.0f} (model_rate_hz = "
-                            f"{p.model_rate_hz:g}, model_rate_tolerance = "
-                            f"{p.model_rate_tolerance:g})")
-        if not converged:
-            warnings.append("solver did not converge: feedforward holds the last converged "
-                            "value (0 after a reversal or at standstill)")
-        if values["shed_since_last_report"]:
-            warnings.append(f"shedding load: {values['shed_since_last_report']} answers "
-                            f"older than max_answer_age_s = {values['max_answer_age_s']:.6g} "
-                            "s not published")
-        if stats.stamp_stalls > w["stalls"]:
-            warnings.append(f"input stamps do not advance ({values['stamp_stalls']} samples "
-                            "with the previous sample's stamp): the model steps on nut "
-                            "angle, direction and load only, and model_age_s is 0 for those")
-        if stats.coarse_steps > w["coarse"]:
-            warnings.append(f"model could not keep up: {values['coarse_steps']} coarser "
-                            f"steps, now {values['model_step_deg']:.3g} deg per step "
-                            f"(model_step_deg = {p.model_step_deg:g})")
-        if values["skipped_steps"]:
-            warnings.append(f"model fell behind: {values['skipped_steps']} steps skipped "
-                            "(answers differ from replay from then on)")
-        if values["rejected_total"] or values["dropped_inputs"]:
-            warnings.append(f"{values['rejected_total']} inputs rejected, "
-                            f"{values['dropped_inputs']} dropped")
-        if values["profile_errors"]:
-            warnings.append(f"{values['profile_errors']} look-ahead profiles failed")
-        if stats.resets > w["resets"]:
-            warnings.append(f"input stamps went backwards: model state reset "
-                            f"{stats.resets - w['resets']} times ({stats.resets} in all)")
-        warnings += list(extra_warnings) + notes
-        level = ERROR if errors else WARN if warnings else OK
-        message = "; ".join(errors + warnings) or ("ok" if self.ready else "starting")
-        return level, message, values
-
-    def _expected_steps(self, w, p):
-        """
-        Return (the fewest model steps the window's accepted inputs must cause, their span).
-
-        The schedule's time floor steps the model once per 1/model_rate_hz of input time
-        (stamps, not wall time: a recording played slowly is no low rate), and at most once
-        per input.  0 when the window tells nothing (under two inputs, stamps stalled or
-        gone backwards).
-        """
-        if w["accepted"] < 2:
-            return 0.0, 0.0
-        span_s = w["last_stamp"] - w["first_stamp"]
-        if not span_s > 0.0:
-            return 0.0, 0.0
-        # minus one: the window may begin just after a step
-        return max(0.0, min(math.floor(span_s * p.model_rate_hz),
-                            w["accepted"] - 1) - 1.0), span_s
 
 
 def process_cpu_s():

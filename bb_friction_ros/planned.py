@@ -28,7 +28,8 @@ from bb_friction_ros.config import BBFrictionError, check_choice, field, from_ma
 from bb_friction_ros.empirical_terms import dahl_state, NOT_FRICTION, TermSet
 from bb_friction_ros.model_file import NoPhysics
 from bb_friction_ros.node_parameters import B2B_AVERAGED, B2B_FEEDFORWARDS, NodeParameters
-from bb_friction_ros.runner import InputSample, load_checked_model, ModelRunner
+from bb_friction_ros.drive import run_samples, SampleColumns
+from bb_friction_ros.runner import load_checked_model, ModelRunner
 
 # The runner steps when the angle turned a model step, when the direction changed, or when a
 # model period of stamps passed: a period far below any row spacing makes every row step.
@@ -143,20 +144,21 @@ def planned_feedforward(t_s, nut_angle_rad, nut_velocity_rad_s, axial_load_n, co
                          mean)
     n = t.size
     out = {c: np.zeros(n) for c in ("ff", "b2g", "b2b", "emp")}
-    converged = np.ones(n, dtype=bool)
-    for k in range(n):
-        p = runner.process(InputSample(float(t[k]), float(phi[k]), float(w[k]),
-                                       float(load[k])))
-        if p is None:
-            raise PlannedTrajectoryError(f"row {k}: the model failed ({runner.stats.last_error})")
-        if w[k] != 0.0 and mean is None:
-            out["ff"][k], out["b2g"][k] = p.torque_total_nm, p.torque_b2g_nm
-            out["b2b"][k], out["emp"][k] = p.torque_b2b_nm, p.torque_empirical_nm
-        elif w[k] != 0.0:               # the physics averaged over the balls' arrangements
-            out["ff"][k], out["emp"][k] = p.feedforward_nm, p.torque_empirical_nm
+    p = run_samples(runner, SampleColumns.of(t, phi, w, load), stop_at_error=True)
+    if len(p) < n or not p.answered.all():
+        raise PlannedTrajectoryError(f"row {len(p) - 1}: the model failed "
+                                     f"({runner.stats.last_error})")
+    moving = w != 0.0
+    if mean is None:
+        out["ff"][moving], out["b2g"][moving] = p.torque_total_nm[moving], p.torque_b2g_nm[moving]
+        out["b2b"][moving] = p.torque_b2b_nm[moving]
+    else:                               # the physics averaged over the balls' arrangements
+        out["ff"][moving] = p.feedforward_nm[moving]
+        for k in np.flatnonzero(moving):
             out["b2b"][k] = mean.at(load[k], w[k])
             out["b2g"][k] = mean.total_at(load[k], w[k]) - out["b2b"][k]
-        converged[k] = p.converged
+    out["emp"][moving] = p.torque_empirical_nm[moving]
+    converged = p.converged
     breakaway = _breakaway_rows(t, w, settings.breakaway_lead_s)
     # the pre-rolling terms' state along the plan (as the runner's): a start against the
     # last motion has no breakaway peak, its friction builds up over the travel

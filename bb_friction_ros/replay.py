@@ -30,26 +30,27 @@ import math
 from pathlib import Path
 import shutil
 import signal
-import struct
 import sys
 import threading
 import time
 
 import numpy as np
 
-from bb_friction_ros import interface
-from bb_friction_ros.bags import (BagError, BagInput, BagWriter, friction_typestore,
-                                  MeasuredAligner, stamp_ns, Topics)
+from bb_friction_ros.alignment import MeasuredAligner
+from bb_friction_ros.bag_types import BagError, stamp_ns, Topics
+from bb_friction_ros.bags import BagInput
 from bb_friction_ros.config import BBFrictionError, bundled_config
 from bb_friction_ros.node_parameters import NodeParameters
+from bb_friction_ros.replay_outputs import (_CDR_LE, _FEEDFORWARD_CDR,  # noqa: F401
+                                            _GROUPS_HEAD_CDR, _OutputBag, _PREDICTION_CDR,
+                                            feedforward_cdr, FEEDFORWARD_TOPIC, groups_cdr,
+                                            GROUPS_TOPIC, OUTPUT_TOPICS, prediction_cdr,
+                                            PREDICTION_TOPIC)
 from bb_friction_ros.runner import build_runner, InputAssembler, InputError, \
     InputSample
 
 CSV_COLUMNS = ["t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n", "torque_pred_nm",
                "torque_b2b_nm"]
-# Output topics and types, as friction_node publishes them (node.py).
-PREDICTION_TOPIC, GROUPS_TOPIC, FEEDFORWARD_TOPIC = OUTPUT_TOPICS = tuple(
-    (interface.absolute(t), interface.TYPES[t]) for t in interface.REPLAYED_OUTPUTS)
 PLOT_FILE = "replay_torque_and_groups.png"
 SUMMARY_FILE = "summary.json"
 PREDICTION_FILE = "prediction.csv"
@@ -187,143 +188,6 @@ class _Series:
         self._file.close()
 
 
-# CDR (little endian) of the two messages written per prediction, packed directly.
-# rosbags builds a message object and walks its type per message: ~70 us of the ~110 us per
-# sample that the output bag cost (profiled).  The layouts are fixed (an empty
-# frame_id, no sequences but one 1-element array); test/test_replay.py checks every
-# byte against rosbags' own serialisation.  Offsets count from the payload after the 4-byte
-# encapsulation header; doubles align to 8.
-_CDR_LE = b"\x00\x01\x00\x00"
-# FrictionPrediction: header (sec, nanosec, frame_id "" = length 1 + NUL, pad to 16), seven
-# float64, converged (bool, pad to 80), model_latency_s, model_age_s, n_groups (pad to 104),
-# torque_state_nm, state_other_direction, arrangement (pad to 120), arrangement_confidence.
-_PREDICTION_CDR = struct.Struct("<4siII1s3x7d?7x2dI4xd?B6xd")
-# Float64MultiArray: layout (no dims, data_offset 0), data of length 1 (pad to 16), the value.
-_FEEDFORWARD_CDR = struct.Struct("<4sIII4xd")
-
-
-def prediction_cdr(pred, sec, nanosec, latency_s):
-    """Return the CDR of friction_node's FrictionPrediction for ``pred`` (see node.py)."""
-    return _PREDICTION_CDR.pack(_CDR_LE, sec, nanosec, 1, b"\x00",
-                                *interface.prediction_values(pred, latency_s))
-
-
-def feedforward_cdr(value_nm):
-    """Return the CDR of the node's feedforward Float64MultiArray: ``[value_nm]``."""
-    return _FEEDFORWARD_CDR.pack(_CDR_LE, 0, 0, 1, value_nm)
-
-
-# ContactGroupStatus: header (as above, pad to 16), nut_angle_rad, n_balls, the number of
-# groups; each ContactGroup is a uint32 sequence and a float64 sequence (its doubles aligned
-# to 8 when there are any).  rosbags' serialize_cdr took ~40 us per status, written at most
-# once per model step (1200 per 6-second bag at 1 rev/s); test_replay checks every byte.
-_GROUPS_HEAD_CDR = struct.Struct("<4siII1s3xdII")
-
-
-def groups_cdr(groups, sec, nanosec, nut_angle_rad, n_balls):
-    """Return the CDR of friction_node's ContactGroupStatus for ``groups`` (see node.py)."""
-    parts = [_GROUPS_HEAD_CDR.pack(_CDR_LE, sec, nanosec, 1, b"\x00", nut_angle_rad,
-                                   n_balls, len(groups))]
-    pos = _GROUPS_HEAD_CDR.size - 4            # payload offsets, after the encapsulation
-    for ids, forces in groups:
-        parts.append(struct.pack(f"<I{len(ids)}I", len(ids), *ids))
-        pos += 4 + 4 * len(ids)
-        parts.append(struct.pack("<I", len(forces)))
-        pos += 4
-        if forces:
-            pad = -pos % 8
-            parts.append(struct.pack(f"<{pad}x{len(forces)}d", *forces))
-            pos += pad + 8 * len(forces)
-    return b"".join(parts)
-
-
-class _OutputBag:
-    """
-    friction_node's output topics written beside the copied input.
-
-    The stream appends (connection, log time [ns], CDR) to ``pending`` in output order (the
-    copy of each input message, then what the node publishes for it) and ``flush`` es once
-    per block: a call per message, and the writer's per-message checks, cost more than the
-    packing itself (profiled).
-    """
-
-    def __init__(self, path, inputs):
-        if path.exists():
-            shutil.rmtree(path)   # our own output of an earlier run into the same --out
-        self.store = friction_typestore()
-        self.bag = BagWriter(path, self.store, storage="mcap")
-        self.conns = {topic: self.bag.connection(topic, msgtype)
-                      for topic, msgtype in OUTPUT_TOPICS}
-        self._prediction, self._feedforward, self._groups = (
-            self.conns[PREDICTION_TOPIC[0]], self.conns[FEEDFORWARD_TOPIC[0]],
-            self.conns[GROUPS_TOPIC[0]])
-        self.copies = {}
-        for conn in inputs:
-            if conn.topic in self.conns:
-                # a recording of a live friction_node: the replay's answers take its place
-                self.bag.not_copied[(conn.topic, conn.msgtype)] = "replaced by replay's output"
-                self.copies[conn.id] = None
-            else:
-                self.copies[conn.id] = self.bag.copy_connection(conn)
-        self._last_groups = None
-        self.pending = []
-        self._answers = self._group_changes = 0
-
-    @property
-    def written(self):
-        """Messages written per output topic."""
-        return {PREDICTION_TOPIC[0]: self._answers, GROUPS_TOPIC[0]: self._group_changes,
-                FEEDFORWARD_TOPIC[0]: self._answers}
-
-    def copy(self, conn, log_ns, raw):
-        """Queue the copy of an input message (``log_ns`` an int, as rosbags reads it)."""
-        out = self.copies.get(conn.id)
-        if out is not None:
-            self.pending.append((out, log_ns, raw))
-
-    def publish(self, pred, stamp, log_ns, latency_s):
-        """
-        Queue what the node publishes for one prediction.
-
-        ``stamp``: the input's header stamp [ns], which the outputs carry unchanged (before
-        1970 too); ``log_ns``: the input's log time, at which they are logged, as a recorder
-        beside the live node would log them (its latency aside).  Logged at the header stamp,
-        a device-clock recording's outputs would lie decades from its inputs.
-        """
-        sec, nanosec = divmod(stamp, 1_000_000_000)
-        pending = self.pending
-        pending.append((self._prediction, log_ns,
-                        prediction_cdr(pred, sec, nanosec, latency_s)))
-        # the runner's safe value (held or 0 after a step that did not converge), as the node
-        pending.append((self._feedforward, log_ns, feedforward_cdr(pred.feedforward_nm)))
-        self._answers += 1
-        if pred.groups != self._last_groups:
-            # The node publishes groups on change (and repeats them on a wall-clock timer,
-            # which carries no new information and no input stamp: not reproduced here).
-            self._last_groups = pred.groups
-            pending.append((self._groups, log_ns, groups_cdr(
-                pred.groups, sec, nanosec, pred.nut_angle_rad, pred.n_balls)))
-            self._group_changes += 1
-
-    def flush(self):
-        """Hand what is queued to the bag writer (taken off the queue even if it fails)."""
-        try:
-            self.bag.write_many(self.pending)
-        finally:
-            self.pending.clear()
-
-    def close(self):
-        self.flush()
-        self.bag.close()
-
-    def abandon(self):
-        """Close a bag whose run stopped early: what was queued is kept where it can be."""
-        try:
-            self.close()
-        except Exception:   # the error that stopped the run is the one reported
-            pass
-
-
 def csv_header(measured, empirical):
     """
     Return the prediction.csv columns.
@@ -396,7 +260,8 @@ def replay(bag, out, config=None, settings=NodeParameters(), topics=Topics(), pr
                 raise BagError(f"{exc}; replay stopped there: {marked}") from None
             raise
         if summary["samples"] == 0:
-            raise NothingAccepted(nothing_accepted_message(src, runner.stats, settings))
+            raise NothingAccepted(
+                nothing_accepted_message(src, runner.stats.rejected, settings))
     return summary
 
 
@@ -533,129 +398,168 @@ def _write_lines(fh, lines):
     fh.write(chunk)
 
 
+class _Sink:
+    """
+    What the stream writes per answer: prediction.csv, the plotted series, the output bag.
+
+    And the RMSE against the measured torque: each answer is held until its measurement
+    when the bag records one (``MeasuredAligner``).
+    """
+
+    def __init__(self, measured, empirical, outbag):
+        self.series = _Series(measured)
+        self.aligner = MeasuredAligner() if measured else None
+        self.empirical = empirical
+        self.outbag = outbag
+        self.line = _row_formats(measured, empirical)
+        self.lines = []
+        self.sq_err, self.n_err = 0.0, 0
+
+    def emit(self, done):
+        """Write the answers the aligner released: ((csv values, series row), measured)."""
+        line, lines, series = self.line, self.lines, self.series
+        for (values, row), meas in done:
+            meas = float(meas)
+            lines.append(line % (values[:6] + (meas,) + values[6:]))
+            series.measure(row, meas)
+            if math.isfinite(meas):
+                self.sq_err += (meas - values[4]) ** 2
+                self.n_err += 1
+
+    def answered(self, pred, stamp_ns_, log_ns, t_in):
+        """Write one answer (``t_in``: perf_counter when its input was taken)."""
+        if self.outbag is not None:
+            self.outbag.publish(pred, stamp_ns_, log_ns, time.perf_counter() - t_in)
+        row = self.series.add(pred)
+        values = csv_values(pred, self.empirical)
+        if self.aligner is None:
+            self.lines.append(self.line % values)
+        else:
+            self.emit(self.aligner.add_prediction(pred.stamp_s, (values, row)))
+
+    def measure(self, stamp_s, value):
+        """Take one measured torque (aligned with the answers by stamp)."""
+        if self.aligner is not None:
+            self.emit(self.aligner.add_measured(stamp_s, value))
+
+    def flush(self, fh, finish=False):
+        """Write what is queued (``finish``: the aligner's held answers too)."""
+        if finish and self.aligner is not None:
+            self.emit(self.aligner.finish())
+        _write_lines(fh, self.lines)
+        if self.outbag is not None:
+            self.outbag.flush()
+
+
+def _feed_block(block, runner, assembler, sink):
+    """
+    Feed one block of messages, in log order, to the runner; write its answers to ``sink``.
+
+    Messages decoded with numpy (``bags.Block``) pass the node's own checks inline; any
+    other is decoded one by one into an Event (``feed_event``).  Each input message is
+    copied to the output bag before what the node publishes for it.
+    """
+    outbag = sink.outbag
+    clock = time.perf_counter
+    items, kinds = block.items, block.kinds
+    fast = block.fast.tolist()
+    stamps, stamps_ns = block.stamp_s.tolist(), block.stamp_ns.tolist()
+    values, velocities = block.value.tolist(), block.velocity.tolist()
+    if outbag is not None:
+        copies, pending = outbag.copies, outbag.pending
+    for i, kind in enumerate(kinds):
+        # a message decoded one by one is decoded before its copy: a damaged one
+        # stops the run before it reaches the output bag
+        ev = block.event(i) if kind is not None and not fast[i] else None
+        if outbag is not None:
+            item = items[i]
+            out_conn = copies.get(item[0].id)
+            if out_conn is not None:
+                pending.append((out_conn, item[1], item[2]))
+        if kind is None:
+            continue
+        if fast[i]:
+            if kind == "measured_torque":
+                sink.measure(stamps[i], values[i])
+                continue
+            if kind == "axial_load":
+                try:
+                    assembler.on_axial_load(values[i])
+                except InputError as err:
+                    runner.reject(err.reason)
+                continue
+            if assembler.load_n is not None:
+                t_in = clock()
+                pred = runner.process(InputSample(
+                    stamps[i], values[i], velocities[i], assembler.load_n))
+                if pred is not None:
+                    sink.answered(pred, stamps_ns[i], items[i][1], t_in)
+                continue
+        if ev is None:      # a nut_state before any load: rejected with its reason
+            ev = block.event(i)
+        if ev.kind == "measured_torque":
+            sink.measure(ev.stamp_s, ev.value)
+            continue
+        t_in = clock()
+        pred = feed_event(ev, runner, assembler)
+        if pred is not None:
+            sink.answered(pred, stamp_ns(ev), items[i][1], t_in)
+
+
 def _stream(src, runner, assembler, out, measured, empirical, outbag, progress,
             interrupted=()):
-    series = _Series(measured)
-    aligner = MeasuredAligner() if measured else None
-    sq_err, n_err = 0.0, 0
+    """Stream the bag through the runner into ``out``; return the summary (``replay``)."""
+    sink = _Sink(measured, empirical, outbag)
     log_min, log_max = math.inf, -math.inf
     bar = None
     if progress:
         from tqdm import tqdm
         bar = tqdm(total=src.total_messages(), desc="replay", unit="msg", file=sys.stderr,
                    mininterval=0.5)
-    line = _row_formats(measured, empirical)
-    lines = []
-    clock = time.perf_counter
-    t0, cpu0 = clock(), time.process_time()
+    t0, cpu0 = time.perf_counter(), time.process_time()
     with open(out / PREDICTION_FILE, "w", newline="") as fh:
         csv.writer(fh).writerow(csv_header(measured, empirical))
-
-        def emit(done):
-            nonlocal sq_err, n_err
-            for (values, row), meas in done:
-                meas = float(meas)
-                lines.append(line % (values[:6] + (meas,) + values[6:]))
-                series.measure(row, meas)
-                if math.isfinite(meas):
-                    sq_err += (meas - values[4]) ** 2
-                    n_err += 1
-
-        def answered(pred, stamp_ns_, log_ns, t_in):
-            if outbag is not None:
-                outbag.publish(pred, stamp_ns_, log_ns, clock() - t_in)
-            row = series.add(pred)
-            values = csv_values(pred, empirical)
-            if aligner is None:
-                lines.append(line % values)
-            else:
-                emit(aligner.add_prediction(pred.stamp_s, (values, row)))
-
         try:
             for block in src.blocks(assembler.nut_joint, all_topics=outbag is not None):
                 if interrupted:
                     raise KeyboardInterrupt
                 if bar is not None:
                     bar.update(len(block.items))
-                items, kinds = block.items, block.kinds
-                fast = block.fast.tolist()
-                stamps, stamps_ns = block.stamp_s.tolist(), block.stamp_ns.tolist()
-                values, velocities = block.value.tolist(), block.velocity.tolist()
-                logs = [items[i][1] for i, kind in enumerate(kinds) if kind is not None]
+                logs = [item[1] for item, kind in zip(block.items, block.kinds)
+                        if kind is not None]
                 if logs:
                     log_min, log_max = min(log_min, min(logs)), max(log_max, max(logs))
-                if outbag is not None:
-                    copies, pending = outbag.copies, outbag.pending
-                for i, kind in enumerate(kinds):
-                    # a message decoded one by one is decoded before its copy: a damaged one
-                    # stops the run before it reaches the output bag
-                    ev = block.event(i) if kind is not None and not fast[i] else None
-                    if outbag is not None:
-                        item = items[i]
-                        out_conn = copies.get(item[0].id)
-                        if out_conn is not None:
-                            pending.append((out_conn, item[1], item[2]))
-                    if kind is None:
-                        continue
-                    if fast[i]:
-                        # decoded with numpy (bags.Block): the node's own checks, inline
-                        if kind == "measured_torque":
-                            if aligner is not None:
-                                emit(aligner.add_measured(stamps[i], values[i]))
-                            continue
-                        if kind == "axial_load":
-                            try:
-                                assembler.on_axial_load(values[i])
-                            except InputError as err:
-                                runner.reject(err.reason)
-                            continue
-                        if assembler.load_n is not None:
-                            t_in = clock()
-                            pred = runner.process(InputSample(
-                                stamps[i], values[i], velocities[i], assembler.load_n))
-                            if pred is not None:
-                                answered(pred, stamps_ns[i], items[i][1], t_in)
-                            continue
-                    if ev is None:      # a nut_state before any load: rejected with its reason
-                        ev = block.event(i)
-                    if ev.kind == "measured_torque":
-                        if aligner is not None:
-                            emit(aligner.add_measured(ev.stamp_s, ev.value))
-                        continue
-                    t_in = clock()
-                    pred = feed_event(ev, runner, assembler)
-                    if pred is not None:
-                        answered(pred, stamp_ns(ev), items[i][1], t_in)
-                _write_lines(fh, lines)
-                if outbag is not None:
-                    outbag.flush()
+                _feed_block(block, runner, assembler, sink)
+                sink.flush(fh)
         except BaseException:
             # keep what was answered before the failure: the partial outputs end where the
             # run stopped (summary.json then says "complete": false)
             try:
-                if aligner is not None:
-                    emit(aligner.finish())
-                _write_lines(fh, lines)
-                if outbag is not None:
-                    outbag.flush()
+                sink.flush(fh, finish=True)
             except Exception:   # the failure that stopped the run is the one reported
                 pass
             raise
-        if aligner is not None:
-            emit(aligner.finish())
-        _write_lines(fh, lines)
+        sink.flush(fh, finish=True)
         runner.settle()     # a step left to follow the last answer, as the node takes it
     wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
     if bar is not None:
         bar.close()
-    stats = runner.stats
     # log time, not header stamps: a header stamp is whatever the driver wrote (one of
     # 2e9 s claimed a 2e9 s recording replayed at 1e10 x real time)
     span = (log_max - log_min) * 1e-9 if log_max > log_min else 0.0
+    summary = _summary(src, runner.stats, sink, span, wall, cpu)
+    if sink.series.rows:
+        plot_replay(out, sink.series)
+    sink.series.close()
+    return summary
+
+
+def _summary(src, stats, sink, span, wall, cpu):
+    """Return summary.json of a stream that ran to its end (``replay`` adds the rest)."""
     summary = {
         "complete": True,
         "messages": dict(src.counts),
-        "samples": series.rows,
+        "samples": sink.series.rows,
         "rejected": dict(stats.rejected),
         "resets": stats.resets,
         "late_samples": stats.late_samples,
@@ -671,9 +575,10 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress,
         # other processes than about replay
         "cpu_s": cpu,
     }
-    if measured:
-        summary["rmse_nm"] = math.sqrt(sq_err / n_err) if n_err else None
-        summary["measured_rows"] = n_err
+    aligner = sink.aligner
+    if aligner is not None:
+        summary["rmse_nm"] = math.sqrt(sink.sq_err / sink.n_err) if sink.n_err else None
+        summary["measured_rows"] = sink.n_err
         summary["measured_alignment"] = {
             "runs": aligner.runs, "late_stamps": aligner.late,
             "stamps_far_ahead": aligner.ahead,
@@ -685,19 +590,20 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress,
             f"{stats.stamp_stalls} nut_state samples carry the previous sample's stamp "
             "(header.stamp not advancing): the model stepped on nut angle, direction and "
             "load only"]
-    if series.rows:
-        plot_replay(out, series)
-    series.close()
     return summary
 
 
-def nothing_accepted_message(src, stats, settings):
-    """Say why no sample was accepted: reasons with counts, what the bag holds, the fix."""
+def nothing_accepted_message(src, rejected, settings):
+    """
+    Say why no sample was accepted: reasons with counts, what the bag holds, the fix.
+
+    ``rejected``: the inputs refused, by reason (a Counter: ``RunnerStats.rejected``).
+    """
     nut = src.topics.absolute("nut_state")
     load = src.topics.absolute("axial_load")
     lines = [f"{src.path}: no nut_state sample was accepted, so there is nothing to predict."]
-    rejected = ", ".join(f"{r} {n}" for r, n in stats.rejected.most_common()) or "none"
-    lines.append(f"  rejected (reason count): {rejected}")
+    reasons = ", ".join(f"{r} {n}" for r, n in rejected.most_common()) or "none"
+    lines.append(f"  rejected (reason count): {reasons}")
     lines.append("  messages read: " + (", ".join(f"{t} {n}" for t, n in
                                                   sorted(src.counts.items())) or "none"))
     lines.append(f"  topics in the bag: {src.describe()}")
@@ -707,17 +613,17 @@ def nothing_accepted_message(src, stats, settings):
     hints = []
     if src.counts[nut] == 0:
         hints.append(f"{nut} has no messages")
-    if stats.rejected.get("wrong_joint") and names:
+    if rejected.get("wrong_joint") and names:
         hints.append(f"the nut joint is named differently: pass --nut-joint {names[0]}"
                      + (f" (or one of {names})" if len(names) > 1 else ""))
-    if stats.rejected.get("no_load_yet"):
+    if rejected.get("no_load_yet"):
         hints.append(f"{load} has no messages" if src.counts[load] == 0 else
                      f"no valid load arrived on {load} (see its rejections)")
-    if stats.rejected.get("absurd_load"):
+    if rejected.get("absurd_load"):
         hints.append(f"loads exceed max_axial_load_n = {settings.max_axial_load_n:g} N "
                      "(set it in --params-file)")
-    if stats.rejected.get("non_finite") or stats.rejected.get("empty") \
-            or stats.rejected.get("missing_velocity"):
+    if rejected.get("non_finite") or rejected.get("empty") \
+            or rejected.get("missing_velocity"):
         hints.append("the messages carry no finite position, velocity or load")
     if hints:
         lines.append("  hint: " + "; ".join(hints))

@@ -255,7 +255,7 @@ def test_batched_writes_are_the_bag_rosbags_writes_message_by_message(tmp_path, 
     and log times going back.  sqlite3 is written by rosbags itself, message by message.
     """
     from rosbags.rosbag2 import StoragePlugin, Writer
-    from bb_friction_ros import bags
+    from bb_friction_ros import bag_writer as bags
     rng = np.random.default_rng(7)
     topics = [("/a", "std_msgs/msg/String"), ("/b", "geometry_msgs/msg/WrenchStamped"),
               ("/c", "sensor_msgs/msg/JointState")]

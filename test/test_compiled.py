@@ -3,7 +3,8 @@ The shared compiled linear algebra (Gauss solver, block back-substitution) and t
 
 Compared with numpy's LAPACK solve of the same systems; the singular retry is checked
 against its definition (the Levenberg-Marquardt shifted matrix).  The on-disk cache of a
-kernel is checked to follow an edit of the functions it calls in compiled.py.
+kernel is checked to follow an edit of the functions it calls in compiled.py, and of its own
+file when its size and time stay the same.
 """
 
 import os
@@ -138,6 +139,36 @@ def test_a_kernel_never_loads_a_stale_compile_of_a_function_it_calls(tmp_path, c
     (pkg / "compiled.py").write_text(source + probe.format(2))
     assert _run_probe(tmp_path, cache_dir)[0] == 2           # not the stale 1
     assert _run_probe(tmp_path, cache_dir) == (2, 1)
+
+
+@pytest.mark.skipif(not compiled.HAVE_NUMBA, reason="numba not installed")
+def test_a_kernel_never_loads_the_compile_of_another_version_of_the_same_size_and_time(
+        tmp_path):
+    """
+    Two versions of a kernel module alike in size and modification time each run their own code.
+
+    A layout constant changed (32 -> 64) by a checkout within the same second, or by a copy
+    that keeps times, must not load the other version's machine code: a cache stamped with
+    the file's time and size alone would; numba 0.68 stamps it with the
+    file's sha256, and ``jit`` adds compiled.py's.  The constant is a module global, outside
+    the function's own bytecode (part of numba's key too).  Each version is run twice, the
+    second time from the cache.
+    """
+    pkg = tmp_path / "probe_pkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    source = Path(compiled.__file__).read_text()
+    (pkg / "compiled.py").write_text(source + "\n\n@jit\ndef probe_value():\n    return 0\n")
+    kern = pkg / "kern.py"
+    version = _PROBE_KERNEL.replace("\n\n@jit", "\nLAYOUT = {}\n\n\n@jit").replace(
+        "+ 0", "+ LAYOUT")
+    cache_dir = tmp_path / "cache"
+    stamp = (1_700_000_000, 1_700_000_000)
+    for value in (32, 64, 32):
+        kern.write_text(version.format(value))
+        os.utime(kern, stamp)
+        assert _run_probe(tmp_path, cache_dir)[0] == value
+        assert _run_probe(tmp_path, cache_dir) == (value, 1)
 
 
 def test_kernel_modules_call_compiled_functions_of_their_own_file_and_compiled_py_only():

@@ -17,12 +17,14 @@ ROOT = pathlib.Path(__file__).resolve().parent.parent / PACKAGE
 # Lowest first; a module may import from its own layer or below.
 LAYERS = {
     1: {"config", "contact", "paper", "compiled", ""},   # "": the package's __init__
-    2: {"linear_bearing", "ball_screw", "empirical_terms", "model_file"},
-    3: {"runner", "live", "bags", "interface", "node_parameters", "feedforward"},
-    4: {"replay", "node", "ros_inputs", "node_entry", "harness", "pytest_plugin", "testing",
+    2: {"linear_bearing", "ball_screw", "empirical_terms", "model_file", "acceleration"},
+    3: {"runner", "live", "bags", "interface", "node_parameters", "feedforward", "schedule",
+        "inputs", "look_ahead", "friction_sign", "bag_types", "bag_writer", "alignment",
+        "live_health", "drive"},
+    4: {"replay", "replay_outputs", "node", "ros_inputs", "node_entry", "harness", "pytest_plugin",
         "trajectories", "planned"},
     5: {"discrepancy", "sweep", "demo", "reproduce", "servo"},
-    6: {"cli"},
+    6: {"cli", "cli_flags"},
 }
 # Below this layer nothing may import ROS: the physics core and the runner run without it.
 # (config.bundled_config may ask ament_index_python, a plain-Python file index, where the

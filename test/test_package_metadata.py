@@ -105,9 +105,9 @@ def test_console_scripts_exist(setup_kwargs):
         assert callable(getattr(importlib.import_module(module), function)), name
 
 
-# Modules loaded only by pytest (the pytest11 plugin and its old name): their imports are
+# Modules loaded only by pytest (the pytest11 plugin): their imports are
 # test dependencies, not runtime ones.
-TEST_TIME_MODULES = {'pytest_plugin.py', 'testing.py'}
+TEST_TIME_MODULES = {'pytest_plugin.py'}
 
 
 def imported_top_level_modules(directory, skip=()):

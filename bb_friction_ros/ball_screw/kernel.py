@@ -257,7 +257,7 @@ def _contact_maps(coef_s, coef_n, m, n_pol, n_az, dtm, dhm, want_jac, ev, ek, em
         evk = ev[k * _EV_BLOCK:(k + 1) * _EV_BLOCK]
         ekk = ek[k * _EK_BLOCK:(k + 1) * _EK_BLOCK]
         emk = em[k * _EM_BLOCK:(k + 1) * _EM_BLOCK]
-        coef = coef_s if k < 2 else coef_n
+        cf = coef_s if k < 2 else coef_n
         for i in range(m):
             if evk[_POS * _CHUNK + i] == 0.0:
                 for r in range(12):
@@ -273,25 +273,34 @@ def _contact_maps(coef_s, coef_n, m, n_pol, n_az, dtm, dhm, want_jac, ev, ek, em
             if j0 > n_az - 1:
                 j0 = n_az - 1
             sy = yy - j0
-            c = coef[i0 * n_az + j0]
+            # cf[cell, ...] read in place: a view of the cell per contact cost an
+            # incref and a decref (atomic) each, a fifth of the step with the other views.
+            cell = i0 * n_az + j0
             sy2 = sy * sy
             sy3 = sy2 * sy
             sx2 = sx * sx
             sx3 = sx2 * sx
             for o in range(4):
-                # Power j of s_h at c[j, 4 o + i]; then the polynomial in s_t (power i).
+                # Power j of s_h at cf[cell, j, 4 o + i]; then the polynomial in s_t.
                 b = 4 * o
-                qv0 = c[0, b] + c[1, b] * sy + c[2, b] * sy2 + c[3, b] * sy3
-                qv1 = c[0, b + 1] + c[1, b + 1] * sy + c[2, b + 1] * sy2 + c[3, b + 1] * sy3
-                qv2 = c[0, b + 2] + c[1, b + 2] * sy + c[2, b + 2] * sy2 + c[3, b + 2] * sy3
-                qv3 = c[0, b + 3] + c[1, b + 3] * sy + c[2, b + 3] * sy2 + c[3, b + 3] * sy3
+                qv0 = (cf[cell, 0, b] + cf[cell, 1, b] * sy
+                       + cf[cell, 2, b] * sy2 + cf[cell, 3, b] * sy3)
+                qv1 = (cf[cell, 0, b + 1] + cf[cell, 1, b + 1] * sy
+                       + cf[cell, 2, b + 1] * sy2 + cf[cell, 3, b + 1] * sy3)
+                qv2 = (cf[cell, 0, b + 2] + cf[cell, 1, b + 2] * sy
+                       + cf[cell, 2, b + 2] * sy2 + cf[cell, 3, b + 2] * sy3)
+                qv3 = (cf[cell, 0, b + 3] + cf[cell, 1, b + 3] * sy
+                       + cf[cell, 2, b + 3] * sy2 + cf[cell, 3, b + 3] * sy3)
                 emk[(_VAL + o) * _CHUNK + i] = qv0 + qv1 * sx + qv2 * sx2 + qv3 * sx3
                 if not want_jac:
                     continue
-                qd0 = c[1, b] + 2.0 * c[2, b] * sy + 3.0 * c[3, b] * sy2
-                qd1 = c[1, b + 1] + 2.0 * c[2, b + 1] * sy + 3.0 * c[3, b + 1] * sy2
-                qd2 = c[1, b + 2] + 2.0 * c[2, b + 2] * sy + 3.0 * c[3, b + 2] * sy2
-                qd3 = c[1, b + 3] + 2.0 * c[2, b + 3] * sy + 3.0 * c[3, b + 3] * sy2
+                qd0 = cf[cell, 1, b] + 2.0 * cf[cell, 2, b] * sy + 3.0 * cf[cell, 3, b] * sy2
+                qd1 = (cf[cell, 1, b + 1]
+                       + 2.0 * cf[cell, 2, b + 1] * sy + 3.0 * cf[cell, 3, b + 1] * sy2)
+                qd2 = (cf[cell, 1, b + 2]
+                       + 2.0 * cf[cell, 2, b + 2] * sy + 3.0 * cf[cell, 3, b + 2] * sy2)
+                qd3 = (cf[cell, 1, b + 3]
+                       + 2.0 * cf[cell, 2, b + 3] * sy + 3.0 * cf[cell, 3, b + 3] * sy2)
                 dv_t = (qv1 + 2.0 * qv2 * sx + 3.0 * qv3 * sx2) / dtm
                 dv_h = (qd0 + qd1 * sx + qd2 * sx2 + qd3 * sx3) / dhm
                 emk[(_DVT + o) * _CHUNK + i] = dv_t
@@ -1869,6 +1878,100 @@ def warm_solve(x, u, x_prev, u_prev, f_prev, d_psi_prev, forces, ring_active, d_
 # axial force on the nut, B2B force per ring pair, the forces of the active pairs in chain
 # order (first ones), contact loads (4 rows).
 STEP_ROWS = 12
+# Constants of the elastic load path (``elastic_path``, ``pack_elastic_constants``).
+ELASTIC_CONSTANTS = 6
+
+
+@_jit(exact=True)
+def elastic_path(phi, epar, axial_load_n, scale):
+    """
+    ``load_distribution.elastic_load_path`` compiled, with the same rounding.
+
+    phi: the balls' track azimuths [rad]; epar: ``pack_elastic_constants``.  Returns (order,
+    comp_a, comp_b).  A stable sort, so the order of two balls at one azimuth is numpy's.
+    """
+    n = phi.shape[0]
+    order = np.argsort(phi, kind="mergesort")
+    comp_a = np.empty(max(n - 1, 0))
+    comp_b = np.empty(max(n - 1, 0))
+    per_rad = epar[0] / (2.0 * math.pi)
+    for k in range(n - 1):
+        dz = per_rad * (phi[order[k + 1]] - phi[order[k]])
+        c_shaft = dz / epar[1]
+        c_nut = 0.0 if epar[3] != 0.0 else dz / epar[2]
+        comp_a[k] = axial_load_n * (epar[4] * c_nut + epar[5] * c_shaft) / LENGTH_SCALE_M
+        comp_b[k] = (c_nut + c_shaft) * scale / LENGTH_SCALE_M
+    return order, comp_a, comp_b
+
+
+@_jit(exact=True)
+def _warm_step_core(azimuth, ratio, x, x_prev, f_prev, forces, ring_active, par, epar,
+                    coef_s, coef_n, ws, wi, d_psi, track_start, sign, u, u_prev, d_psi_prev,
+                    scale, axial_load_n, tol, max_it, max_rate, disp_limit, max_changes,
+                    budget):
+    """
+    ``advance``, the load path, ``warm_solve`` and ``step_totals`` of one warm step.
+
+    u, u_prev: the nut displacement(s), (1,) rigid, (N,) elastic (epar not empty).
+    Returns (ok, exhausted, iterations, norm, u, x, forces of the candidate pairs [N],
+    step_totals' tuple, azimuth, phi, theta, terms, per_contact, rear, front).
+    """
+    geo = par[0:9]
+    cst = par[9:17]
+    k_load = par[17:21]
+    k_axis = par[21:25]
+    on_nut = par[25:29]
+    grid = par[29:33]
+    b_r = par[33:51].reshape((3, 6))
+    b_f = par[51:69].reshape((3, 6))
+    c_r = par[69:75]
+    c_f = par[75:81]
+    k_r = par[81:99].reshape((6, 3))
+    k_f = par[99:117].reshape((6, 3))
+    az, phi, theta, centres, pair_idx, rear, front = advance(
+        azimuth, ratio, d_psi, geo[0], geo[1], track_start, geo[2], sign, geo[3], geo[4],
+        geo[5], geo[6], geo[7], geo[8])
+    if epar.shape[0] > 0:
+        order, comp_a, comp_b = elastic_path(phi, epar, axial_load_n, scale)
+    else:
+        order = np.zeros(0, dtype=np.int64)
+        comp_a = np.zeros(0)
+        comp_b = comp_a
+    out, iterations, speed = warm_solve(
+        x, u, x_prev, u_prev, f_prev, d_psi_prev, forces, ring_active, d_psi, pair_idx,
+        centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid, scale, axial_load_n,
+        rear, front, b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b, tol, max_it,
+        max_rate, disp_limit, max_changes, budget, ws, wi)
+    xs, us, f_all, active, ok, exhausted, _, norm, terms, per_contact = out
+    f = f_all * scale
+    totals = step_totals(terms[:, 6], terms[:, 7], per_contact[:, :, 0], f, speed, active,
+                         pair_idx, xs, sign)
+    return (ok, exhausted, iterations, norm, us, xs, f, totals, az, phi, theta, terms,
+            per_contact, rear, front)
+
+
+@_jit(exact=True)
+def _step_outputs(az, phi, theta, terms, per_contact, rear, front, f, totals, omega_n):
+    """Return the output block (STEP_ROWS, N) and the active pairs (2, K) of a step."""
+    new_ratio, new_forces, act = totals[4], totals[6], totals[7]
+    n = az.shape[0]
+    blk = np.empty((STEP_ROWS, n))
+    for i in range(n):
+        blk[0, i] = az[i]
+        blk[1, i] = phi[i]
+        blk[2, i] = theta[i]
+        blk[3, i] = new_ratio[i]
+        blk[4, i] = new_ratio[i] * omega_n
+        blk[5, i] = -terms[i, 8]
+        blk[6, i] = new_forces[i]
+        for k in range(4):
+            blk[8 + k, i] = per_contact[i, k, 0]
+    groups = np.empty((2, act.shape[0]), dtype=np.int64)
+    for j in range(act.shape[0]):
+        groups[0, j] = rear[act[j]]
+        groups[1, j] = front[act[j]]
+        blk[7, j] = f[act[j]]
+    return blk, groups
 
 
 @_jit(exact=True)
@@ -1891,56 +1994,145 @@ def warm_step(azimuth, ratio, x, x_prev, f_prev, forces, ring_active, par, coef_
     front of the active pairs in chain order (2, K)).  Of a failed solve only its flags and
     iterations mean anything: the caller redoes the geometry and cold-starts.
     """
-    geo = par[0:9]
-    cst = par[9:17]
-    k_load = par[17:21]
-    k_axis = par[21:25]
-    on_nut = par[25:29]
-    grid = par[29:33]
-    b_r = par[33:51].reshape((3, 6))
-    b_f = par[51:69].reshape((3, 6))
-    c_r = par[69:75]
-    c_f = par[75:81]
-    k_r = par[81:99].reshape((6, 3))
-    k_f = par[99:117].reshape((6, 3))
-    az, phi, theta, centres, pair_idx, rear, front = advance(
-        azimuth, ratio, d_psi, geo[0], geo[1], track_start, geo[2], sign, geo[3], geo[4],
-        geo[5], geo[6], geo[7], geo[8])
     u_arr = np.empty(1)
     u_arr[0] = u
     up_arr = np.empty(1)
     up_arr[0] = u_prev
-    no_order = np.zeros(0, dtype=np.int64)
-    no_comp = np.zeros(0)
-    out, iterations, speed = warm_solve(
-        x, u_arr, x_prev, up_arr, f_prev, d_psi_prev, forces, ring_active, d_psi, pair_idx,
-        centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid, scale, axial_load_n,
-        rear, front, b_r, b_f, c_r, c_f, k_r, k_f, no_order, no_comp, no_comp, tol, max_it,
-        max_rate, disp_limit, max_changes, budget, ws, wi)
-    xs, us, f_all, active, ok, exhausted, _, norm, terms, per_contact = out
-    n = xs.shape[0]
-    f = f_all * scale
-    loss_sum, torque_sum, b2b_sum, load_max, new_ratio, new_active, new_forces, act \
-        = step_totals(terms[:, 6], terms[:, 7], per_contact[:, :, 0], f, speed, active,
-                      pair_idx, xs, sign)
-    blk = np.empty((STEP_ROWS, n))
-    for i in range(n):
-        blk[0, i] = az[i]
-        blk[1, i] = phi[i]
-        blk[2, i] = theta[i]
-        blk[3, i] = new_ratio[i]
-        blk[4, i] = new_ratio[i] * omega_n
-        blk[5, i] = -terms[i, 8]
-        blk[6, i] = new_forces[i]
-        for k in range(4):
-            blk[8 + k, i] = per_contact[i, k, 0]
-    groups = np.empty((2, act.shape[0]), dtype=np.int64)
-    for j in range(act.shape[0]):
-        groups[0, j] = rear[act[j]]
-        groups[1, j] = front[act[j]]
-        blk[7, j] = f[act[j]]
-    return (ok, exhausted, iterations, norm, us[0], loss_sum, torque_sum, b2b_sum, load_max, blk,
-            xs, new_active, groups)
+    ok, exhausted, iterations, norm, us, xs, f, totals, az, phi, theta, terms, per_contact, \
+        rear, front = _warm_step_core(
+            azimuth, ratio, x, x_prev, f_prev, forces, ring_active, par, np.zeros(0), coef_s,
+            coef_n, ws, wi, d_psi, track_start, sign, u_arr, up_arr, d_psi_prev, scale,
+            axial_load_n, tol, max_it, max_rate, disp_limit, max_changes, budget)
+    blk, groups = _step_outputs(az, phi, theta, terms, per_contact, rear, front, f, totals,
+                                omega_n)
+    return (ok, exhausted, iterations, norm, us[0], totals[0], totals[1], totals[2], totals[3],
+            blk, xs, totals[5], groups)
+
+
+# warm_steps' settings: direction sign, load sign, max iterations, max active-set changes,
+# iteration budget (-1: none), trust-region rate limit, the nut angle before the path [rad],
+# the track start [rad], the force scale's floor (preload load) [N], the smallest load
+# solved (-1 with preload) [N], the largest [N], tolerance, sub-step tolerance, trust-region
+# displacement limit's floor and the Hertz approach per N^(2/3) [LENGTH_SCALE_M].
+SETTINGS_SIZE = 15
+# warm_steps' results: steps done, last step converged, budget exhausted, its iterations,
+# its residual norm, its sums (loss, nut torque, B2B force x speed), largest contact load,
+# sub-steps not converged, iterations of the steps done.  After a failed step, "its
+# iterations" are those of the failed solve.
+RESULT_SIZE = 11
+
+
+@_jit(exact=True)
+def warm_steps(state, ring_active, angles, velocities, loads, par, epar, coef_s, coef_n, ws,
+               wi, settings, result):
+    """
+    Take the warm steps to the given points in turn in one call: sub-steps, then the last.
+
+    Each step is ``WholeScrew.step``'s warm step (``_warm_step_core``, the same arithmetic,
+    its force scale and trust region computed as there), its start the state the step before
+    left; all but the last point are sub-steps (the sub-step tolerance).  state
+    (16 N + 2 + 2 m,): the model's state, read and written in place: azimuth, orbit ratio,
+    x (6 N), the previous x (6 N), B2B force per ring pair and its previous value, the
+    previous nut-angle increment, then u and the previous u (m = 1 rigid, N elastic), then
+    a spare; ring_active (N,) is written in place too.  angles [rad], velocities [rad/s],
+    loads [N]: the points; settings (SETTINGS_SIZE,).  Stops before the first point that is
+    not a warm step of the state's direction and load sign inside the load range, and at the
+    first step that fails from every guess, the state left as that step found it (the caller
+    takes it with a cold start).  Writes ``result`` (RESULT_SIZE,) and returns the output
+    block and active pairs (``warm_step``'s) of the path's last point, or empty arrays if it
+    was not reached.
+    """
+    n = ring_active.shape[0]
+    m = (state.shape[0] - 16 * n - 2) // 2
+    azimuth = state[0:n]
+    ratio = state[n:2 * n]
+    x = state[2 * n:8 * n].reshape((n, 6))
+    x_prev = state[8 * n:14 * n].reshape((n, 6))
+    forces = state[14 * n:15 * n]
+    f_prev = state[15 * n:16 * n]
+    u = state[16 * n + 1:16 * n + 1 + m]
+    u_prev = state[16 * n + 1 + m:16 * n + 1 + 2 * m]
+    sign = settings[0]
+    load_sign = settings[1]
+    max_it = int(settings[2])
+    max_changes = int(settings[3])
+    budget = int(settings[4])
+    max_rate = settings[5]
+    angle = settings[6]
+    for i in range(RESULT_SIZE):
+        result[i] = 0.0
+    blk = np.empty((0, n))
+    groups = np.empty((2, 0), dtype=np.int64)
+    steps = angles.shape[0]
+    for j in range(steps):
+        w = velocities[j]
+        load = loads[j]
+        if not (w * sign > 0.0 and (1.0 if load >= 0.0 else -1.0) == load_sign
+                and abs(load) > settings[9] and abs(load) <= settings[10]):
+            return blk, groups
+        last = j == steps - 1
+        d_psi = angles[j] - angle
+        scale = max(abs(load) / n, settings[8])
+        disp_limit = max(settings[13], settings[14] * max(scale, 0.0) ** (2.0 / 3.0)
+                         / LENGTH_SCALE_M)
+        ok, exhausted, iterations, norm, us, xs, f, totals, az, phi, theta, terms, \
+            per_contact, rear, front = _warm_step_core(
+                azimuth, ratio, x, x_prev, f_prev, forces, ring_active, par, epar, coef_s,
+                coef_n, ws, wi, d_psi, angles[j] + settings[7], sign, u, u_prev,
+                state[16 * n], scale, load, settings[11] if last else settings[12], max_it,
+                max_rate, disp_limit, max_changes, budget)
+        result[3] = iterations
+        if not (ok or exhausted):
+            return blk, groups
+        result[10] += iterations
+        # The state the next step starts from (WholeScrew._fused_step's bookkeeping).
+        for i in range(n):
+            for k in range(6):
+                x_prev[i, k] = x[i, k]
+                x[i, k] = xs[i, k]
+            f_prev[i] = forces[i]
+            forces[i] = totals[6][i]
+            ring_active[i] = totals[5][i]
+            azimuth[i] = az[i]
+            ratio[i] = totals[4][i]
+        for i in range(m):
+            u_prev[i] = u[i]
+            u[i] = us[i]
+        state[16 * n] = d_psi
+        angle = angles[j]
+        result[0] = j + 1
+        if last:
+            result[1] = 1.0 if ok else 0.0
+            result[2] = 1.0 if exhausted else 0.0
+            result[4] = norm
+            result[5] = totals[0]
+            result[6] = totals[1]
+            result[7] = totals[2]
+            result[8] = totals[3]
+            blk, groups = _step_outputs(az, phi, theta, terms, per_contact, rear, front, f,
+                                        totals, w)
+        elif not ok:
+            result[9] += 1
+    return blk, groups
+
+
+def state_size(n, elastic):
+    """Length of ``warm_steps``' state for n balls."""
+    m = n if elastic else 1
+    return 16 * n + 2 + 2 * m
+
+
+def pack_elastic_constants(lead_m, elastic):
+    """
+    Pack ``elastic_path``'s constants from the lead [m] and an ``ElasticBodies``.
+
+    (lead, shaft E A, nut E A, 1 if the nut is held on its outer surface, the selectors S_n
+    and L_s of ``load_distribution.compatibility_terms``).
+    """
+    return np.array([lead_m, elastic.shaft_axial_rigidity_n, elastic.nut_axial_rigidity_n,
+                     1.0 if elastic.nut_support == "outer_surface" else 0.0,
+                     1.0 if elastic.nut_support == "flange_at_track_start" else 0.0,
+                     1.0 if elastic.shaft_load_end == "track_start" else 0.0])
 
 
 def pack_step_constants(geo, cst, k_load, k_axis, on_nut, grid, b_r, b_f, c_r, c_f, k_r, k_f):

@@ -97,6 +97,8 @@ class StepResult:
     in_load_range: bool = True       # False: outside config.validity (see docs); see step()
     iterations: int = 0
     solve_time_s: float = 0.0
+    substeps_not_converged: int = 0   # step_path: sub-steps before this one not converged
+    substep_iterations: int = 0       # step_path: Newton iterations of those sub-steps
 
     @property
     def n_groups(self):
@@ -149,6 +151,7 @@ class WholeScrew:
         # The compiled solve's work arrays, reused step after step (kernel.work_arrays).
         self._work = kernel.work_arrays(self.n)
         self._step_par = {}         # kernel.warm_step's packed constants per direction
+        self._path_buf = None       # kernel.warm_steps' buffers (step_path)
         # Fixed by the config, read at every step.
         self._preload = self.model.preload_load() > 0.0
         e, b = config.errors, self.model.ball
@@ -171,6 +174,19 @@ class WholeScrew:
         new = object.__new__(type(self))
         new.__dict__.update(self.__dict__)
         new._work = kernel.work_arrays(self.n)
+        new._path_buf = None
+        if self._path_buf is not None:
+            # The state may be views into this model's path buffer, which its next
+            # step_path overwrites in place: the copy keeps its own.
+            if self._state is not None:
+                new._state = (self._state[0].copy(), np.copy(self._state[1])
+                              if isinstance(self._state[1], np.ndarray) else self._state[1],
+                              ) + tuple(self._state[2:])
+            if self._prev is not None:
+                new._prev = tuple(np.copy(a) if isinstance(a, np.ndarray) else a
+                                  for a in self._prev)
+            new._forces, new.azimuth = self._forces.copy(), self.azimuth.copy()
+            new.ratio, new._active = self.ratio.copy(), self._active.copy()
         return new
 
     @property
@@ -386,6 +402,160 @@ class WholeScrew:
         return self._result(omega_n, axial_load_n, loss_sum, torque_sum, b2b_sum, load_max,
                             bool(ok), iterations, blk[1], blk[2], blk[4], blk[8:12].T, blk[5],
                             _groups(rear, front, blk[7, :len(rear)].tolist()), t0), iterations
+
+    def step_path(self, nut_angles_rad, nut_velocities_rad_s, axial_loads_n, dt_s):
+        """
+        Step through the given points in turn: sub-steps, then an answered last step.
+
+        The same steps as ``step(angle, velocity, load, dt_s, substep=True)`` for every point
+        but the last and ``step(..., substep=False)`` for the last, with the same results
+        (iterations included), taken in one compiled call while they are warm steps of the
+        same direction and load sign (``kernel.warm_steps``); a step that is not (a cold
+        start, a reversal, no load, a failed warm solve, a lead error) and the steps after
+        it are taken by ``step``.  Measured need: the Python around each step and its call
+        was a fifth to a third of a sub-step at 20 rev/s and N = 37 (bench_warm_step.py).
+
+        Parameters
+        ----------
+        nut_angles_rad, nut_velocities_rad_s, axial_loads_n : sequence of float
+            The points, one per step (as ``step``'s arguments) [rad], [rad/s], [N].
+        dt_s : float
+            Time of each step [s].
+
+        Returns
+        -------
+        StepResult
+            The last step's; its ``substeps_not_converged`` counts the sub-steps before it
+            that did not converge, its ``substep_iterations`` their Newton iterations (a
+            sub-step's own result is not returned).
+
+        """
+        t0 = time.perf_counter()
+        angles = np.asarray(nut_angles_rad, dtype=float).ravel()
+        w = np.asarray(nut_velocities_rad_s, dtype=float).ravel()
+        loads = np.asarray(axial_loads_n, dtype=float).ravel()
+        k = angles.shape[0]
+        if k == 0 or w.shape != (k,) or loads.shape != (k,):
+            raise ValueError(f"step_path: {k} angles, {w.shape[0]} velocities and "
+                             f"{loads.shape[0]} loads (one of each per step, at least one)")
+        done, res, missed, sub_it = self._path_fused(angles, w, loads, float(dt_s))
+        for j in range(done, k):
+            if res is not None:
+                missed += not res.converged
+                sub_it += res.iterations
+            res = self.step(angles[j], w[j], loads[j], dt_s, substep=j < k - 1)
+        res.substeps_not_converged = missed
+        res.substep_iterations = sub_it
+        res.solve_time_s = time.perf_counter() - t0
+        return res
+
+    def _path_fused(self, angles, w, loads, dt_s):
+        """
+        Take the leading warm steps of a path in one compiled call (``step_path``).
+
+        Returns (steps done, the last one's StepResult if that was the path's last step else
+        None, sub-steps not converged, their iterations).
+        """
+        solver = self.model.solver
+        if not (self._state is not None and self._geo is not None and solver.use_kernel
+                and getattr(self._warm_solve, "__func__", None) is _COMPILED_WARM_SOLVE):
+            return 0, None, 0, 0
+        sign, load_sign = self._state[2], self._state[3]
+        elastic = self.config.load_distribution == "elastic"
+        buf = self._path_buf
+        if buf is None:
+            buf = self._path_buffers(elastic)
+        consts = solver.kernel_constants()
+        key = (sign, id(consts[0]))
+        par = self._step_par.get(key)
+        if par is None:
+            par = kernel.pack_step_constants(self._geo, *consts[:4], consts[6],
+                                             *solver.b2b.linear_terms(sign))
+            self._step_par = {key: par, "cst": consts[0]}     # keeps consts[0] alive (its id)
+        # The state as ``step`` keeps it, into the model's own buffer unless it is there
+        # already (the last step was a path's); the previous step's first, since it may be
+        # the buffer's current x.
+        x, u = self._state[0], self._state[1]
+        if self._prev is not None:
+            xp, up, fp, dp = self._prev
+        else:
+            xp, up, fp, dp = x, u, self._forces, 0.0
+        v = buf["views"]
+        if not (x is v[0] and xp is v[1] and fp is v[3] and self._forces is v[2]
+                and self.azimuth is v[4] and self.ratio is v[5] and self._active is v[6]):
+            v[1][:] = xp
+            v[3][:] = fp
+            v[8][:] = up
+            v[0][:] = x
+            v[2][:] = self._forces
+            v[4][:] = self.azimuth
+            v[5][:] = self.ratio
+            v[6][:] = self._active
+        v[7][:] = u
+        state = buf["state"]
+        state[16 * self.n] = dp
+        st, cfg = solver.settings, self.config.solver
+        settings = buf["settings"]
+        settings[0] = sign
+        settings[1] = load_sign
+        settings[2] = st.max_iterations
+        settings[3] = st.max_active_set_changes
+        settings[4] = cfg.realtime_max_iterations or -1
+        settings[5] = st.max_step_rate
+        settings[6] = self.nut_angle
+        settings[11] = cfg.tolerance
+        settings[12] = cfg.substep_tolerance
+        settings[13] = solver.disp_limit
+        result = buf["result"]
+        blk, groups = kernel.warm_steps(state, v[6], angles, w, loads, par, buf["epar"],
+                                        consts[4], consts[5], *self._work, settings, result)
+        done = int(result[0])
+        k = angles.shape[0]
+        if done:
+            # ``step``'s bookkeeping of the steps done: the state is the buffer's (views
+            # into it; a copy of this model copies them, see __copy__).
+            self.nut_angle = float(angles[done - 1])
+            for _ in range(done):
+                self.time += dt_s       # as ``step`` sums it, step by step
+            u, up = (v[7], v[8]) if elastic else (float(v[7][0]), float(v[8][0]))
+            self._prev = (v[1], up, v[3], float(state[16 * self.n]))
+            self._state = (v[0], u, sign, load_sign)
+            self._forces, self.azimuth, self.ratio, self._active = v[2], v[4], v[5], v[6]
+        missed = int(result[9])
+        if done < k:
+            return done, None, missed, int(result[10])
+        rear, front = groups[0].tolist(), groups[1].tolist()
+        loss_sum, torque_sum, b2b_sum, load_max = result[5:9].tolist()
+        res = self._result(float(w[k - 1]), float(loads[k - 1]), loss_sum, torque_sum,
+                           b2b_sum, load_max, bool(result[1]), int(result[3]), blk[1],
+                           blk[2], blk[4], blk[8:12].T, blk[5],
+                           _groups(rear, front, blk[7, :len(rear)].tolist()),
+                           time.perf_counter())
+        return done, res, missed, int(result[10] - result[3])
+
+    def _path_buffers(self, elastic):
+        """Make ``kernel.warm_steps``' buffers of this model and views into its state."""
+        n = self.n
+        m = n if elastic else 1
+        state = np.zeros(kernel.state_size(n, elastic))
+        o = 16 * n + 1
+        # x, previous x, forces, previous forces, azimuth, ratio, active, u, previous u
+        views = (state[2 * n:8 * n].reshape(n, 6), state[8 * n:14 * n].reshape(n, 6),
+                 state[14 * n:15 * n], state[15 * n:16 * n], state[0:n], state[n:2 * n],
+                 np.zeros(n, dtype=bool), state[o:o + m], state[o + m:o + 2 * m])
+        settings = np.zeros(kernel.SETTINGS_SIZE)
+        settings[7] = self.config.track.track_start_rad
+        settings[8] = self.model.preload_load()
+        settings[9] = -1.0 if self._preload else self.config.solver.min_axial_load_n
+        settings[10] = self.max_axial_load_n
+        settings[14] = self.model.ball.hertz[0].coef_delta_m_per_n23
+        self._path_buf = {
+            "state": state, "views": views, "settings": settings,
+            "result": np.zeros(kernel.RESULT_SIZE),
+            "epar": kernel.pack_elastic_constants(self.config.geometry.lead_m,
+                                                  self.config.elastic) if elastic
+            else np.zeros(0)}
+        return self._path_buf
 
     def _warm_solve_numpy(self, d_psi, centres, sign, axial_load_n, scale, pair_idx, rear, front,
                           budget, elastic, tol):

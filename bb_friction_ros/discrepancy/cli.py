@@ -19,7 +19,7 @@ BASELINES = ("model", "zero")
 
 def add_discrepancy_parser(subparsers):
     """Register ``discrepancy`` on ``subparsers``."""
-    from bb_friction_ros.bags import Topics
+    from bb_friction_ros.cli_flags import add_topic_arguments
     p = subparsers.add_parser(
         "discrepancy", help="where and why measured friction differs from the model: "
         "residual per regime, physically named empirical terms, augmented.yaml, held-out "
@@ -35,7 +35,7 @@ def add_discrepancy_parser(subparsers):
     p.add_argument("--nut-joint", default="nut_joint", help="joint name in nut_state")
     p.add_argument("--model-rate-hz", type=float, default=100.0,
                    help="model steps per second of input time (as replay and the node)")
-    Topics.add_arguments(p)
+    add_topic_arguments(p)
     p.add_argument("--recompute-prediction", action="store_true",
                    help="CSV input: run the model even if the CSV has torque_pred_nm")
     p.add_argument("--validate", metavar="DATA2", help="a second recording (bag or CSV): the "
@@ -64,7 +64,7 @@ def add_discrepancy_parser(subparsers):
 
 def run_discrepancy_command(args):
     """Handle ``bb-friction discrepancy``; return the exit status."""
-    from bb_friction_ros.bags import Topics
+    from bb_friction_ros.cli_flags import topics_from_args
     from bb_friction_ros.discrepancy.data import InputProblem
     from bb_friction_ros.discrepancy.settings import load_settings
     from bb_friction_ros.discrepancy.workflow import OutputInUse, run_discrepancy
@@ -79,7 +79,7 @@ def run_discrepancy_command(args):
     try:
         status, summary = run_discrepancy(
             args.input, args.out, config=args.config, settings=settings,
-            replay_settings=replay_settings, topics=Topics.from_args(args),
+            replay_settings=replay_settings, topics=topics_from_args(args),
             recompute=args.recompute_prediction, plots=not args.no_plots,
             progress=not args.no_progress, validate_path=args.validate,
             baseline=args.baseline, torque_constant_nm_per_a=args.torque_constant_nm_per_a,

@@ -1,8 +1,8 @@
 """
 A recording with measured and predicted torque, from a rosbag2 or a CSV file.
 
-The prediction always comes from the replay path (``replay.run_events``: the live node's
-``InputAssembler`` and ``ModelRunner``), so the residual is what the node would show.
+The prediction always comes from the replay path (``drive.run_samples``: the live node's
+input checks and ``ModelRunner``), so the residual is what the node would show.
 
 CSV input: a header row and one row per nut-state sample with the columns ``t_s, nut_angle_rad,
 nut_velocity_rad_s, axial_load_n, torque_meas_nm`` (SI; other columns are ignored; an optional
@@ -17,25 +17,25 @@ kept for the model (continuity of the ball state) but not analysed.
 """
 
 from array import array
-from collections import Counter
 import csv
 import dataclasses
-import itertools
 import math
 from pathlib import Path
 import sys
-from types import SimpleNamespace
 from typing import Optional
 
 import numpy as np
 
-from bb_friction_ros.bags import BagInput, Event, measured_torque_at, Topics
+from bb_friction_ros.alignment import measured_at
+from bb_friction_ros.bags import BagInput, Event, Topics
 from bb_friction_ros.config import BBFrictionError, bundled_config, ConfigError
 from bb_friction_ros.empirical_terms import Inputs
 from bb_friction_ros.model_file import load_model_file
 from bb_friction_ros.node_parameters import NodeParameters
-from bb_friction_ros.replay import nothing_accepted_message, run_events
-from bb_friction_ros.runner import build_runner, InputAssembler, run_starts
+from bb_friction_ros.drive import run_samples, samples_of_events, samples_of_rows
+from bb_friction_ros.replay import nothing_accepted_message
+from bb_friction_ros.runner import build_runner
+from bb_friction_ros.schedule import run_starts
 
 CSV_REQUIRED = ("t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n",
                 "torque_meas_nm")
@@ -56,10 +56,6 @@ EMPIRICAL_MATCH_REL = 1e-3
 # Rows a run of a multi-run CSV needs: fewer between two backward steps of t_s is not a run
 # but rows out of order (a shuffled or reversed file).
 MIN_RUN_ROWS = 10
-# Events per call of the replay path: each chunk's predictions are packed into float arrays
-# before the next chunk is read, so a long bag is never in memory as Python objects (a
-# 10-minute 1 kHz bag peaked at 928 MB as lists of events and predictions).
-EVENTS_PER_CHUNK = 65536
 
 
 class InputProblem(BBFrictionError):
@@ -80,17 +76,34 @@ class Recording:
     converged: np.ndarray           # bool
     info: dict = dataclasses.field(default_factory=dict)
     nut_accel_rad_s2: Optional[np.ndarray] = None    # None: derived by the workflow
+    # the replay path's run that predicted every sample, its steps kept (FirstPass); None:
+    # the prediction came from elsewhere (a CSV's column, no model), or not every sample
+    first_pass: object = None
 
     def take(self, mask):
-        """Return the sub-recording of the samples where ``mask`` is true."""
+        """Return the sub-recording of the samples where ``mask`` is true (no FirstPass)."""
         arrays = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
-                  if f.name != "info"}
+                  if f.name not in ("info", "first_pass")}
         arrays = {k: (None if v is None else v[mask]) for k, v in arrays.items()}
         return Recording(info=dict(self.info), **arrays)
 
     def __len__(self):
         """Return the number of samples."""
         return int(self.t_s.size)
+
+
+@dataclasses.dataclass(frozen=True)
+class FirstPass:
+    """
+    The replay path's run over every sample of a Recording: what it stepped, and at what.
+
+    The physical trials take their step schedule and the base run from it instead of
+    running the model over the recording again (``physical.trials.base_run``).
+    """
+
+    config_path: str
+    schedule_args: tuple            # NodeParameters.schedule() of the run
+    predictions: object             # drive.PredictionColumns, one row per sample
 
 
 def run_times(stamps_s):
@@ -111,94 +124,51 @@ def inputs_of(rec, mask=None):
                      rec.axial_load_n[sel], accel)
 
 
-class Packed:
+def _progress(events, progress):
+    if not progress:
+        return events
+    from tqdm import tqdm
+    return tqdm(events, desc="replay", unit="msg", file=sys.stderr, mininterval=0.5)
+
+
+def predict_samples(samples, config_path, replay_settings):
     """
-    Per-sample columns of predictions (or of bare input samples), packed as they arrive.
+    Run SampleColumns through the replay path; return (PredictionColumns, runner stats).
 
-    ``array`` holds 8 bytes a value where a Prediction object costs hundreds.
+    Only the samples the model answered are kept (a model error is counted, as replay
+    counts it, and leaves no row).
     """
-
-    COLUMNS = ("stamp_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n",
-               "torque_total_nm")
-
-    def __init__(self):
-        """Start empty."""
-        self.cols = {c: array("d") for c in self.COLUMNS}
-        self.converged = array("b")
-
-    def add(self, p, torque_nm=None, converged=True):
-        """Append a Prediction, or an input sample with ``torque_nm`` and ``converged``."""
-        for c in self.COLUMNS[:4]:
-            self.cols[c].append(getattr(p, c))
-        self.cols["torque_total_nm"].append(p.torque_total_nm if torque_nm is None
-                                            else torque_nm)
-        self.converged.append(p.converged if torque_nm is None else converged)
-
-    def __len__(self):
-        """Return the number of samples."""
-        return len(self.converged)
-
-    def column(self, name):
-        """Return column ``name`` as a float array (no copy)."""
-        return np.frombuffer(self.cols[name], dtype=float) if len(self) else np.zeros(0)
-
-
-def _chunks(events, progress):
-    it = iter(events)
-    if progress:
-        from tqdm import tqdm
-        it = tqdm(it, desc="replay", unit="msg", file=sys.stderr, mininterval=0.5)
-    while True:
-        chunk = list(itertools.islice(it, EVENTS_PER_CHUNK))
-        if not chunk:
-            return
-        yield chunk
+    runner = build_runner(config_path, *replay_settings.schedule())
+    preds = run_samples(runner, samples)
+    return (preds if preds.answered.all() else preds.take(preds.answered)), runner.stats
 
 
 def predict_events(events, config_path, replay_settings, progress=False):
     """
     Run events (any iterable, consumed once) through the replay path.
 
-    Return (Packed predictions, runner stats).  The events go through ``replay.run_events``
-    a chunk at a time with one runner and assembler, so the result is the same as in one call.
+    Return (PredictionColumns of the answered samples, runner stats): the events are
+    validated as the node validates them (``drive.samples_of_events``), then driven.
     """
-    runner = build_runner(config_path, *replay_settings.schedule())
-    assembler = InputAssembler(replay_settings.nut_joint, replay_settings.max_axial_load_n)
-    packed = Packed()
-    for chunk in _chunks(events, progress):
-        for p in run_events(chunk, runner, assembler):
-            packed.add(p)
-    return packed, runner.stats
+    samples = samples_of_events(_progress(events, progress), replay_settings.nut_joint,
+                                replay_settings.max_axial_load_n)
+    return predict_samples(samples, config_path, replay_settings)
 
 
-def _from_packed(packed, measured_nm, info, base_terms=()):
-    t = packed.column("stamp_s")
+def _from_predictions(preds, measured_nm, info, base_terms=(), first_pass=None):
+    t = preds.column("stamp_s")
     info["base_terms"] = list(base_terms)     # in the prediction already
-    return Recording(t, run_times(t), packed.column("nut_angle_rad"),
-                     packed.column("nut_velocity_rad_s"), packed.column("axial_load_n"),
-                     np.asarray(measured_nm, dtype=float), packed.column("torque_total_nm"),
-                     np.frombuffer(packed.converged, dtype=np.int8).astype(bool), info)
+    return Recording(t, run_times(t), preds.column("nut_angle_rad"),
+                     preds.column("nut_velocity_rad_s"), preds.column("axial_load_n"),
+                     np.asarray(measured_nm, dtype=float), preds.column("torque_total_nm"),
+                     preds.converged, info, first_pass=first_pass)
 
 
-def zero_baseline_events(events, replay_settings):
-    """
-    Return the nut-state samples of ``events`` without a model (``--baseline zero``).
-
-    Return (Packed samples with torque 0, rejected inputs by reason).
-    """
-    from bb_friction_ros.runner import InputError
-    assembler = InputAssembler(replay_settings.nut_joint, replay_settings.max_axial_load_n)
-    packed, rejected = Packed(), {}
-    for e in events:
-        try:
-            if e.kind == "axial_load":
-                assembler.on_axial_load(e.value)
-            elif e.kind == "nut_state":
-                packed.add(assembler.on_nut_state(e.stamp_s, e.names, e.positions,
-                                                  e.velocities), torque_nm=0.0)
-        except InputError as exc:
-            rejected[exc.reason] = rejected.get(exc.reason, 0) + 1
-    return packed, rejected
+def _first_pass(preds, samples, config_path, replay_settings):
+    """Return the FirstPass of a run that answered every sample, else None."""
+    if len(preds) != len(samples):
+        return None
+    return FirstPass(str(config_path), tuple(replay_settings.schedule()), preds)
 
 
 def _split_measured(events, stamps, values):
@@ -312,18 +282,26 @@ def _load_bag_input(src, path, config_path, replay_settings, topics, progress, b
     else:                             # the motor current x K, not the torque topic
         inputs = _split_measured(events, array("d"), array("d"))
         meas_t, meas_v = None, current[1]
+    samples = samples_of_events(_progress(inputs, progress), replay_settings.nut_joint,
+                                replay_settings.max_axial_load_n)
     if baseline == "zero":
-        packed, rejected = zero_baseline_events(inputs, replay_settings)
+        # no model of this screw: the samples themselves, the prediction 0 N m
+        cols = (samples.stamp_s, samples.nut_angle_rad, samples.nut_velocity_rad_s,
+                samples.axial_load_n)
+        rejected = samples.rejected
         info = {"input": str(path), "format": "rosbag2", "baseline": "zero",
                 "prediction_source": "none (--baseline zero: no model of this screw)",
-                "messages": dict(counts), "rejected": rejected}
+                "messages": dict(counts), "rejected": dict(rejected)}
         base = ()
     else:
-        packed, stats = predict_events(inputs, config_path, replay_settings, progress)
-        rejected = dict(stats.rejected)
+        preds, stats = predict_samples(samples, config_path, replay_settings)
+        first = _first_pass(preds, samples, config_path, replay_settings)
+        cols = (preds.stamp_s, preds.nut_angle_rad, preds.nut_velocity_rad_s,
+                preds.axial_load_n)
+        rejected = stats.rejected
         info = {"input": str(path), "format": "rosbag2",
                 "prediction_source": "model (replay path)", "messages": dict(counts),
-                "rejected": rejected, "nonconverged_steps": stats.nonconverged_steps,
+                "rejected": dict(rejected), "nonconverged_steps": stats.nonconverged_steps,
                 "resets": stats.resets}
         base = load_model_file(config_path)[1].names
     time_base = None
@@ -331,14 +309,17 @@ def _load_bag_input(src, path, config_path, replay_settings, topics, progress, b
         meas_t, time_base = current_on_header_clock(current[0], clock[0], clock[1], path)
     if not len(meas_t):
         raise no_measurement()
-    if not len(packed):   # the reasons, what the bag holds and the fix, as replay says them
-        raise InputProblem(nothing_accepted_message(
-            src, SimpleNamespace(rejected=Counter(rejected)), replay_settings))
-    measured_events = (Event("measured_torque", t, value=v) for t, v in zip(meas_t, meas_v))
-    meas = measured_torque_at(measured_events, packed.column("stamp_s"))   # as replay does
+    if not len(cols[0]):  # the reasons, what the bag holds and the fix, as replay says them
+        raise InputProblem(nothing_accepted_message(src, rejected, replay_settings))
+    meas = measured_at(meas_t, meas_v, cols[0])      # aligned as replay aligns it
     if time_base is not None:
         info["current_time_base"] = time_base
-    return _from_packed(packed, meas, info, base)
+    if baseline == "zero":
+        n = len(cols[0])
+        info["base_terms"] = []
+        return Recording(cols[0], run_times(cols[0]), *cols[1:], np.asarray(meas, float),
+                         np.zeros(n), np.ones(n, dtype=bool), info)
+    return _from_predictions(preds, meas, info, base, first)
 
 
 # Nut states over which the offset between their log times and header stamps is smoothed (a
@@ -579,16 +560,18 @@ def load_csv(path, config_path, replay_settings=NodeParameters(), recompute=Fals
                          cols["nut_velocity_rad_s"], cols["axial_load_n"],
                          cols["torque_meas_nm"], pred,
                          np.ones(cols["t_s"].size, dtype=bool), info, accel)
-    preds, stats = predict_events(csv_events(cols, replay_settings.nut_joint), config_path,
-                                  replay_settings, progress)
+    samples = samples_of_rows(cols["t_s"], cols["nut_angle_rad"], cols["nut_velocity_rad_s"],
+                              cols["axial_load_n"], replay_settings.max_axial_load_n)
+    preds, stats = predict_samples(samples, config_path, replay_settings)
     if len(preds) != cols["t_s"].size:
         raise InputProblem(f"{path}: {cols['t_s'].size - len(preds)} row(s) rejected by the "
                            f"model input checks: {dict(stats.rejected)}")
     info.update(prediction_source="model (replay path, recomputed from the CSV inputs)",
                 rejected=dict(stats.rejected), nonconverged_steps=stats.nonconverged_steps,
                 resets=stats.resets)
-    rec = _from_packed(preds, cols["torque_meas_nm"], info,
-                       load_model_file(config_path)[1].names)
+    rec = _from_predictions(preds, cols["torque_meas_nm"], info,
+                            load_model_file(config_path)[1].names,
+                            _first_pass(preds, samples, config_path, replay_settings))
     rec.nut_accel_rad_s2 = accel
     return rec
 

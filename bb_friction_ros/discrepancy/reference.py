@@ -18,14 +18,6 @@ PARAMS = ("j_kg_m2", "c_nm_s_per_rad", "coulomb_nm", "offset_nm")
 FORMULA = "J alpha + c omega + T_c sign(omega) + T_0 (ordinary least squares)"
 
 
-def rigid_body_columns(x):
-    """Return the design matrix [alpha, omega, sign(omega), 1] of Inputs or a Recording."""
-    w = x.nut_velocity_rad_s
-    a = x.nut_accel_rad_s2
-    return np.column_stack([np.zeros_like(w) if a is None else a, w, np.sign(w),
-                            np.ones_like(w)])
-
-
 def _columns(x):
     """Return the columns [alpha, omega, sign(omega), 1] (1 and a missing alpha as scalars)."""
     w = x.nut_velocity_rad_s

@@ -170,7 +170,7 @@ class DiscrepancySettings:
         "above or below the model's prediction is refused as a unit or torque-constant error "
         "(the model's friction is off by tens of percent, not by orders of magnitude)",
         lo=1.0)
-    # --- the model's own parameters as candidates (physical.py) -----------------------------
+    # --- the model's own parameters as candidates (physical/) --------------------------------
     physical: PhysicalSettings = dataclasses.field(default_factory=PhysicalSettings)
 
 

@@ -96,7 +96,7 @@ def baseline(cfg, config_path=None, model_rate_hz=100.0, cache_dir=None):
         if "pred" not in stored:
             preds, _ = predict_events(events, config_path, settings)
             stored.update(pred=preds.column("torque_total_nm").copy(),
-                          converged=np.frombuffer(preds.converged, np.int8).astype(bool))
+                          converged=preds.converged.copy())
             if cache is not None:
                 cache.parent.mkdir(parents=True, exist_ok=True)
                 tmp = cache.with_suffix(".tmp.npz")

@@ -304,16 +304,20 @@ def analyse(rec, settings, physics=None):
     bins = regimes.make_bins(x, settings)
     x_hold = inputs_of(rec, hold)
     tau = noise.tau
-    written, refit = refit_terms(ctx, terms, x, r - shift)
+    refitted, refit = refit_terms(ctx, terms, x, r - shift)
     reference, heldout = reference_rows(rec, x, r, fit_mask, after)
+    std = noise.std_nm
     return Analysis(
-        rec, fit_mask, r, added, noise.std_nm, written, trace, untested, bins,
-        regimes.regime_table(bins, x, r, noise.std_nm, settings, tau),
-        regimes.regime_table(bins, x, after, noise.std_nm, settings, tau),
-        regimes.regime_table(bins, x_hold, r[hold], noise.std_nm, settings, tau),
-        regimes.regime_table(bins, x_hold, after[hold], noise.std_nm, settings, tau),
-        _rms(r[hold]), _rms(after[hold]), dropped, noise, spec, ambiguous, rejected,
-        terms, refit, choice, reference, heldout, search)
+        recording=rec, fit_mask=fit_mask, residual_nm=r, added_nm=added, noise_nm=std,
+        terms=refitted, trace=trace, untested=untested, bins=bins,
+        regions_before=regimes.regime_table(bins, x, r, std, settings, tau),
+        regions_after=regimes.regime_table(bins, x, after, std, settings, tau),
+        holdout_before=regimes.regime_table(bins, x_hold, r[hold], std, settings, tau),
+        holdout_after=regimes.regime_table(bins, x_hold, after[hold], std, settings, tau),
+        rmse_before_nm=_rms(r[hold]), rmse_after_nm=_rms(after[hold]), dropped=dropped,
+        noise=noise, accel_filter=spec, ambiguities=ambiguous, rejected_terms=rejected,
+        terms_fit_part=terms, refit=refit, accel_choice=choice, reference=reference,
+        heldout=heldout, physical=search)
 
 
 def nonconvergence_first(missing, dropped, rec):

@@ -34,7 +34,6 @@ phi_d of travel instead of flipping.  No switch is needed then: at rest s stays,
 axis rests on the friction like on a soft spring.
 """
 
-import copy
 import dataclasses
 import math
 
@@ -43,7 +42,7 @@ import numpy as np
 from bb_friction_ros.config import ConfigError
 from bb_friction_ros.empirical_terms import TermSet
 from bb_friction_ros.model_file import load_model_file, NoPhysics, physics_of
-from bb_friction_ros.runner import InputSample, ModelRunner, RunnerStats
+from bb_friction_ros.runner import InputSample, ModelRunner
 
 # Velocity at which the breakaway torque is asked of the model [rad/s]: an instant into the
 # motion.  Small against any viscous term (1e-9 rad/s x 10 N m s/rad = 1e-8 N m).
@@ -145,21 +144,17 @@ class ModelFriction:
         """
         Return the model's torque an instant into a motion of ``direction`` (+1 or -1) [N m].
 
-        A copy of the runner answers it (the runner's own rules, a term's live state
-        included), so the runner itself is left as it is: the axis has not moved yet.  The
-        copy is shallow but for what a step changes in place: the counters and the terms'
-        live state (the screw's step rebinds its arrays, ``ModelRunner.profile_seed``).
+        A copy of the runner answers it (``ModelRunner.probe``: the runner's own rules, a
+        term's live state included), so the runner itself is left as it is: the axis has
+        not moved yet.
         """
         w = direction * BREAKAWAY_PROBE_RAD_S
         r = self.runner
-        if r._state is None:
+        if r.state is None:
             p = r.process(InputSample(t_s, angle_rad, w, load_n))
             return self._last if p is None else float(p.torque_total_nm)
-        probe = copy.copy(r)
-        probe.screw = copy.copy(r.screw)
-        probe._live_terms = copy.deepcopy(r._live_terms)
-        probe.stats = RunnerStats()
-        stamp = max(t_s, r._last_stamp)
+        probe = r.probe()
+        stamp = max(t_s, r.schedule.last_stamp)
         p = probe.process(InputSample(stamp, angle_rad, w, load_n))
         if p is None:       # a failed probe: the last moving torque's magnitude, counted
             self.errors += 1

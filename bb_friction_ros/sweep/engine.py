@@ -47,12 +47,11 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from bb_friction_ros import __version__
-from bb_friction_ros.config import ConfigError, MEMORY_LIMIT_MIB, format_bytes
+from bb_friction_ros.config import ConfigError, format_bytes, LOCALHOST, MEMORY_LIMIT_MIB
 from bb_friction_ros.sweep import CONNECT_TIMEOUT_S, IN_FLIGHT_PER_THREAD
 from bb_friction_ros.sweep.files import fsync_dir, write_text_atomic
 from bb_friction_ros.sweep.models import INVALID, MODELS, OK, evaluate
 
-LOCALHOST = "127.0.0.1"
 PART_PREFIX = "batch-"
 RESULTS = "results.parquet"
 MANIFEST = "manifest.json"

@@ -1,0 +1,174 @@
+"""
+``WholeScrew.step_path`` (an input's steps in one compiled call) is ``step`` called per step.
+
+The runner reaches each input through sub-steps then an answered step; ``step_path`` takes
+them all in one call (``kernel.warm_steps``) while they are warm steps, and hands the rest
+(a cold start, a reversal, a load of the other sign, no load, a failed warm solve) to
+``step``.  Both run the same compiled arithmetic from one numba cache, so the answered
+steps agree bit for bit, Newton iterations included; the sub-steps' convergence and
+iterations are counted.
+"""
+
+import copy
+import math
+
+import numpy as np
+import pytest
+
+from bb_friction_ros.ball_screw import kernel
+from bb_friction_ros.ball_screw.whole_screw import WholeScrew
+from bb_friction_ros.model_file import load_ball_screw
+from invariants import check_step
+
+pytestmark = pytest.mark.skipif(not kernel.HAVE_NUMBA, reason="numba not installed")
+
+STEP_RAD = math.radians(1.8)
+DT_S = 0.001
+
+
+def _paths(inputs=70):
+    """
+    Per input: the (angle, velocity, load) of its steps, the last one answered.
+
+    Four steps per input at 20 rev/s-like spacing; a reversal, a load change inside a path,
+    a load of the other sign, a standing nut and a path with a stop inside on the way.
+    """
+    angle, out = 0.0, []
+    for k in range(inputs):
+        sign = 1.0 if k < 30 or k >= 45 else -1.0
+        steps = []
+        for j in range(4):
+            angle += sign * STEP_RAD
+            load = 1500.0 if k < 20 else 900.0 + 100.0 * j
+            if k >= 55:
+                load = -1200.0
+            w = 0.0 if k == 50 or (k == 40 and j == 2) else sign * 2.0 * math.pi * 20.0
+            steps.append((angle, w, load))
+        out.append(steps)
+    return out
+
+
+def _step_by_step(screw, paths):
+    """``step`` per step: the answered step's result and the sub-steps' counts per input."""
+    out = []
+    for steps in paths:
+        missed = its = 0
+        for j, (a, w, f) in enumerate(steps):
+            r = screw.step(a, w, f, DT_S, substep=j < len(steps) - 1)
+            if j < len(steps) - 1:
+                missed += not r.converged
+                its += r.iterations
+        out.append((r, missed, its))
+    return out
+
+
+def _by_path(screw, paths):
+    return [screw.step_path(*zip(*steps), DT_S) for steps in paths]
+
+
+def _same(r, q):
+    for name in ("torque_total_nm", "torque_b2g_nm", "torque_b2b_nm", "loss_w",
+                 "drive_power_w", "converged", "in_load_range", "iterations", "t_s",
+                 "nut_angle_rad"):
+        assert getattr(r, name) == getattr(q, name), name
+    for name in ("azimuth_rad", "theta_rad", "omega_b_rad_s", "loads_n", "b2b_forces_n",
+                 "ball_axial_loads_n"):
+        np.testing.assert_array_equal(getattr(r, name), getattr(q, name), err_msg=name)
+    assert r.groups == q.groups
+
+
+@pytest.mark.parametrize("distribution, budget", [("rigid", 0), ("elastic", 0), ("rigid", 2),
+                                                  ("elastic", 2)])
+def test_step_path_is_step_per_step_bit_for_bit(model, distribution, budget):
+    cfg = load_ball_screw(overrides={"load_distribution": distribution,
+                                     "solver": {"realtime_max_iterations": budget}})
+    paths = _paths()
+    ref = _step_by_step(WholeScrew(cfg, model), paths)
+    got = _by_path(WholeScrew(cfg, model), paths)
+    for (r, missed, its), q in zip(ref, got):
+        _same(r, q)
+        assert (q.substeps_not_converged, q.substep_iterations) == (missed, its)
+        if q.converged and q.nut_velocity_rad_s != 0.0:
+            check_step(q)
+    assert max(q.n_groups for q in got) >= 2
+    if budget:
+        assert any(q.substeps_not_converged for q in got)   # the budget cut some sub-steps
+
+
+def test_step_path_takes_its_warm_steps_in_one_compiled_call(model, config, monkeypatch):
+    screw = WholeScrew(config, model)
+    paths = _paths(20)
+    screw.step_path(*zip(*paths[0]), DT_S)                   # cold start, then warm steps
+    calls = []
+    real = kernel.warm_steps
+
+    def counted(*args):
+        calls.append(len(args[2]))
+        return real(*args)
+    monkeypatch.setattr(kernel, "warm_steps", counted)
+    monkeypatch.setattr(kernel, "warm_step", None)           # would raise if called
+    monkeypatch.setattr(type(model.solver), "solve", None)
+    for steps in paths[1:]:
+        assert screw.step_path(*zip(*steps), DT_S).converged
+    assert calls == [4] * (len(paths) - 1)
+
+
+def test_step_path_hands_the_rest_of_a_path_to_step(model, config, monkeypatch):
+    """
+    A path the compiled call stops in goes on step by step.
+
+    Here it stops after the first step, as after a failed warm solve: the compiled call is
+    given that step alone, as the sub-step it is (the sub-step tolerance, its convergence
+    counted).
+    """
+    paths = _paths(25)
+    ref = _step_by_step(WholeScrew(config, model), paths)
+    real = kernel.warm_steps
+
+    def first_only(state, active, angles, w, loads, *rest):
+        settings, result = rest[-2], rest[-1]
+        answered_tol = settings[11]
+        settings[11] = settings[12]
+        out = real(state, active, angles[:1], w[:1], loads[:1], *rest)
+        settings[11] = answered_tol
+        if result[0] == 1 and result[1] == 0.0:
+            result[9] += 1
+        return out
+    monkeypatch.setattr(kernel, "warm_steps", first_only)
+    for (r, missed, its), q in zip(ref, _by_path(WholeScrew(config, model), paths)):
+        _same(r, q)
+        assert (q.substeps_not_converged, q.substep_iterations) == (missed, its)
+
+
+def test_a_copy_steps_on_its_own_after_a_path(model, config):
+    """The look-ahead steps a copy in another thread: the model's next path must not move it."""
+    paths = _paths(20)
+    screw, twin = WholeScrew(config, model), WholeScrew(config, model)
+    for steps in paths[:10]:
+        screw.step_path(*zip(*steps), DT_S)
+        twin.step_path(*zip(*steps), DT_S)
+    ahead = copy.copy(screw)
+    for steps in paths[10:]:
+        screw.step_path(*zip(*steps), DT_S)
+    for steps in paths[10:]:
+        _same(ahead.step_path(*zip(*steps), DT_S), twin.step_path(*zip(*steps), DT_S))
+
+
+def test_step_path_refuses_points_that_do_not_match():
+    screw = WholeScrew(load_ball_screw())
+    with pytest.raises(ValueError, match="step_path"):
+        screw.step_path([0.1, 0.2], [1.0], [1500.0, 1500.0], DT_S)
+    with pytest.raises(ValueError, match="step_path"):
+        screw.step_path([], [], [], DT_S)
+
+
+def test_step_path_returns_python_numbers(model, config):
+    """Its scalars are floats, as ``step``'s (a numpy scalar prints as np.float64(...))."""
+    screw = WholeScrew(config, model)
+    for steps in _paths(3):
+        r = screw.step_path(*zip(*steps), DT_S)
+    for name in ("t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n",
+                 "torque_total_nm", "torque_b2g_nm", "torque_b2b_nm", "drive_power_w",
+                 "loss_w", "power_balance_error"):
+        assert type(getattr(r, name)) is float, name
+    assert type(r.iterations) is int and type(r.converged) is bool
