@@ -16,8 +16,7 @@ MAX_FUNCTION_LINES = 120
 MAX_CLASS_LINES = 300
 EXEMPT = {"ball_screw/kernel.py"}
 # "path:name" -> lines it has now: it may shrink, not grow
-OVER_LIMIT = {"ball_screw/solver.py:EquilibriumSolver": 330,
-              "ball_screw/whole_screw.py:WholeScrew": 373}
+OVER_LIMIT = {}
 
 
 def offenders(root=PACKAGE, exempt=EXEMPT):

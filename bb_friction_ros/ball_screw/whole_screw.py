@@ -135,7 +135,309 @@ def isotonic_ring_projection(azimuth, separation, loop_length):
                                   float(separation), float(loop_length))
 
 
-class WholeScrew:
+class _PathSteps:
+    """
+    Take ``WholeScrew.step_path``: the warm steps between two inputs in one compiled call.
+
+    The model's state is kept in a buffer of its own (``_path_buffers``) that
+    ``kernel.warm_steps`` updates in place; ``step`` takes whatever the call could not.
+    """
+
+    def step_path(self, nut_angles_rad, nut_velocities_rad_s, axial_loads_n, dt_s):
+        """
+        Step through the given points in turn: sub-steps, then an answered last step.
+
+        The same steps as ``step(angle, velocity, load, dt_s, substep=True)`` for every point
+        but the last and ``step(..., substep=False)`` for the last, with the same results
+        (iterations included), taken in one compiled call while they are warm steps of the
+        same direction and load sign (``kernel.warm_steps``); a step that is not (a cold
+        start, a reversal, no load, a failed warm solve, a lead error) and the steps after
+        it are taken by ``step``.  Measured need: the Python around each step and its call
+        was a fifth to a third of a sub-step at 20 rev/s and N = 37 (bench_warm_step.py).
+
+        Parameters
+        ----------
+        nut_angles_rad, nut_velocities_rad_s, axial_loads_n : sequence of float
+            The points, one per step (as ``step``'s arguments) [rad], [rad/s], [N].
+        dt_s : float
+            Time of each step [s].
+
+        Returns
+        -------
+        StepResult
+            The last step's; its ``substeps_not_converged`` counts the sub-steps before it
+            that did not converge, its ``substep_iterations`` their Newton iterations (a
+            sub-step's own result is not returned).
+
+        """
+        t0 = time.perf_counter()
+        angles = np.asarray(nut_angles_rad, dtype=float).ravel()
+        w = np.asarray(nut_velocities_rad_s, dtype=float).ravel()
+        loads = np.asarray(axial_loads_n, dtype=float).ravel()
+        k = angles.shape[0]
+        if k == 0 or w.shape != (k,) or loads.shape != (k,):
+            raise ValueError(f"step_path: {k} angles, {w.shape[0]} velocities and "
+                             f"{loads.shape[0]} loads (one of each per step, at least one)")
+        done, res, missed, sub_it = self._path_fused(angles, w, loads, float(dt_s))
+        for j in range(done, k):
+            if res is not None:
+                missed += not res.converged
+                sub_it += res.iterations
+            res = self.step(angles[j], w[j], loads[j], dt_s, substep=j < k - 1)
+        res.substeps_not_converged = missed
+        res.substep_iterations = sub_it
+        res.solve_time_s = time.perf_counter() - t0
+        return res
+
+    def _path_fused(self, angles, w, loads, dt_s):
+        """
+        Take the leading warm steps of a path in one compiled call (``step_path``).
+
+        Returns (steps done, the last one's StepResult if that was the path's last step else
+        None, sub-steps not converged, their iterations).
+        """
+        solver = self.model.solver
+        if not (self._state is not None and self._geo is not None and solver.use_kernel
+                and getattr(self._warm_solve, "__func__", None) is _COMPILED_WARM_SOLVE):
+            return 0, None, 0, 0
+        sign, load_sign = self._state[2], self._state[3]
+        elastic = self.config.load_distribution == "elastic"
+        buf = self._path_buf
+        if buf is None:
+            buf = self._path_buffers(elastic)
+        consts = solver.kernel_constants()
+        key = (sign, id(consts[0]))
+        par = self._step_par.get(key)
+        if par is None:
+            par = kernel.pack_step_constants(self._geo, *consts[:4], consts[6],
+                                             *solver.b2b.linear_terms(sign))
+            self._step_par = {key: par, "cst": consts[0]}     # keeps consts[0] alive (its id)
+        # The state as ``step`` keeps it, into the model's own buffer unless it is there
+        # already (the last step was a path's); the previous step's first, since it may be
+        # the buffer's current x.
+        x, u = self._state[0], self._state[1]
+        if self._prev is not None:
+            xp, up, fp, dp = self._prev
+        else:
+            xp, up, fp, dp = x, u, self._forces, 0.0
+        v = buf["views"]
+        if not (x is v[0] and xp is v[1] and fp is v[3] and self._forces is v[2]
+                and self.azimuth is v[4] and self.ratio is v[5] and self._active is v[6]):
+            v[1][:] = xp
+            v[3][:] = fp
+            v[8][:] = up
+            v[0][:] = x
+            v[2][:] = self._forces
+            v[4][:] = self.azimuth
+            v[5][:] = self.ratio
+            v[6][:] = self._active
+        v[7][:] = u
+        state = buf["state"]
+        state[16 * self.n] = dp
+        st, cfg = solver.settings, self.config.solver
+        settings = buf["settings"]
+        settings[0] = sign
+        settings[1] = load_sign
+        settings[2] = st.max_iterations
+        settings[3] = st.max_active_set_changes
+        settings[4] = cfg.realtime_max_iterations or -1
+        settings[5] = st.max_step_rate
+        settings[6] = self.nut_angle
+        settings[11] = cfg.tolerance
+        settings[12] = cfg.substep_tolerance
+        settings[13] = solver.disp_limit
+        result = buf["result"]
+        blk, groups = kernel.warm_steps(state, v[6], angles, w, loads, par, buf["epar"],
+                                        consts[4], consts[5], *self._work, settings, result)
+        done = int(result[0])
+        k = angles.shape[0]
+        if done:
+            # ``step``'s bookkeeping of the steps done: the state is the buffer's (views
+            # into it; a copy of this model copies them, see __copy__).
+            self.nut_angle = float(angles[done - 1])
+            for _ in range(done):
+                self.time += dt_s       # as ``step`` sums it, step by step
+            u, up = (v[7], v[8]) if elastic else (float(v[7][0]), float(v[8][0]))
+            self._prev = (v[1], up, v[3], float(state[16 * self.n]))
+            self._state = (v[0], u, sign, load_sign)
+            self._forces, self.azimuth, self.ratio, self._active = v[2], v[4], v[5], v[6]
+        missed = int(result[9])
+        if done < k:
+            return done, None, missed, int(result[10])
+        rear, front = groups[0].tolist(), groups[1].tolist()
+        loss_sum, torque_sum, b2b_sum, load_max = result[5:9].tolist()
+        res = self._result(float(w[k - 1]), float(loads[k - 1]), loss_sum, torque_sum,
+                           b2b_sum, load_max, bool(result[1]), int(result[3]), blk[1],
+                           blk[2], blk[4], blk[8:12].T, blk[5],
+                           _groups(rear, front, blk[7, :len(rear)].tolist()),
+                           time.perf_counter())
+        return done, res, missed, int(result[10] - result[3])
+
+    def _path_buffers(self, elastic):
+        """Make ``kernel.warm_steps``' buffers of this model and views into its state."""
+        n = self.n
+        m = n if elastic else 1
+        state = np.zeros(kernel.state_size(n, elastic))
+        o = 16 * n + 1
+        # x, previous x, forces, previous forces, azimuth, ratio, active, u, previous u
+        views = (state[2 * n:8 * n].reshape(n, 6), state[8 * n:14 * n].reshape(n, 6),
+                 state[14 * n:15 * n], state[15 * n:16 * n], state[0:n], state[n:2 * n],
+                 np.zeros(n, dtype=bool), state[o:o + m], state[o + m:o + 2 * m])
+        settings = np.zeros(kernel.SETTINGS_SIZE)
+        settings[7] = self.config.track.track_start_rad
+        settings[8] = self.model.preload_load()
+        settings[9] = -1.0 if self._preload else self.config.solver.min_axial_load_n
+        settings[10] = self.max_axial_load_n
+        settings[14] = self.model.ball.hertz[0].coef_delta_m_per_n23
+        self._path_buf = {
+            "state": state, "views": views, "settings": settings,
+            "result": np.zeros(kernel.RESULT_SIZE),
+            "epar": kernel.pack_elastic_constants(self.config.geometry.lead_m,
+                                                  self.config.elastic) if elastic
+            else np.zeros(0)}
+        return self._path_buf
+
+
+class _WarmStep:
+    """
+    Take ``WholeScrew.step``'s warm solve, compiled or on the numpy reference path.
+
+    The compiled step in one call (``_fused_step``), or the solver's Newton on the numpy
+    reference path (``_warm_solve_numpy``), from its guesses.
+    """
+
+    def _fused_step(self, d_psi, sign, load_sign, omega_n, axial_load_n, budget, t0, tol):
+        """
+        Take a warm step of a rigid nut without lead errors in one compiled call.
+
+        ``kernel.warm_step``: ``advance``, ``_warm_solve`` and ``_finish``'s sums with the same
+        arithmetic.  Returns (StepResult, iterations), or (None, iterations) when the solve
+        failed from every guess (state untouched: the caller cold-starts).
+        """
+        solver = self.model.solver
+        st = solver.settings
+        x, u = self._state[0], self._state[1]
+        if self._prev is not None:
+            xp, up, fp, dp = self._prev
+        else:
+            xp, up, fp, dp = x, u, self._forces, 0.0
+        if x.shape != (self.n, 6) or xp.shape != x.shape or fp.shape != (self.n,):
+            # The kernel does not check bounds (see solver._solve_active_kernel).
+            raise ValueError(f"warm solve: state {x.shape}, previous {xp.shape}, forces "
+                             f"{fp.shape} for {self.n} balls")
+        scale = self.model.force_scale(self.n, axial_load_n)
+        consts = solver.kernel_constants()
+        key = (sign, id(consts[0]))
+        par = self._step_par.get(key)
+        if par is None:
+            par = kernel.pack_step_constants(self._geo, *consts[:4], consts[6],
+                                             *solver.b2b.linear_terms(sign))
+            self._step_par = {key: par, "cst": consts[0]}     # keeps consts[0] alive (its id)
+        ok, exhausted, iterations, _, u, loss_sum, torque_sum, b2b_sum, load_max, blk, x, \
+            active, groups = kernel.warm_step(
+                self.azimuth, self.ratio, x, xp, fp, self._forces, self._active, par,
+                consts[4], consts[5], *self._work, d_psi,
+                self.nut_angle + self.config.track.track_start_rad, sign, float(u), float(up),
+                float(dp), scale, axial_load_n, tol, st.max_iterations, st.max_step_rate,
+                solver.displacement_limit(scale), st.max_active_set_changes,
+                budget if budget else -1, omega_n)
+        iterations = int(iterations)
+        if not (ok or exhausted):
+            return None, iterations
+        # Real-time mode: an unfinished iterate is kept too, converged = False.
+        self._prev = (self._state[0], self._state[1], self._forces, d_psi)
+        self._state = (x, u, sign, load_sign)
+        self.azimuth, self.ratio, self._forces = blk[0], blk[3], blk[6]
+        self._active = active
+        rear, front = groups[0].tolist(), groups[1].tolist()
+        return self._result(omega_n, axial_load_n, loss_sum, torque_sum, b2b_sum, load_max,
+                            bool(ok), iterations, blk[1], blk[2], blk[4], blk[8:12].T, blk[5],
+                            _groups(rear, front, blk[7, :len(rear)].tolist()), t0), iterations
+
+    def _warm_solve_numpy(self, d_psi, centres, sign, axial_load_n, scale, pair_idx, rear, front,
+                          budget, elastic, tol):
+        """
+        Solve a warm step from the guesses in turn: the readable reference of ``_warm_solve``.
+
+        Returns (the first ``Solution`` that converged or used up the budget, else the last;
+        the iterations of all).  Runs the solver's own path (numpy, or the compiled Newton
+        per active set).
+        """
+        sol = None
+        iterations = 0
+        guesses = self._guesses(d_psi)
+        for gx, gu, gf in guesses[:1] if budget else guesses:
+            # Closed pairs keep their predicted force > 0; open ones close if the rear ball
+            # is predicted faster (the active-set loop corrects either guess).
+            faster = gx[rear, 2] * sign > gx[front, 2] * sign
+            active = (self._active[pair_idx] & (gf[pair_idx] > 0.0)) | faster
+            sol = self.model.solver.solve(gx, gu, centres, sign, axial_load_n, scale, rear,
+                                          front, active, gf[pair_idx], budget, elastic, tol)
+            iterations += sol.iterations
+            if sol.converged or sol.budget_exhausted:
+                break
+        return sol, iterations
+
+    def _warm_solve(self, d_psi, centres, sign, axial_load_n, scale, pair_idx, rear, front,
+                    budget, elastic, tol):
+        """
+        ``_warm_solve_numpy`` in one compiled call (``kernel.warm_solve``), same arithmetic.
+
+        Measured need: the Python around the compiled Newton (guesses, active
+        set, argument packing) cost about 90 us of a 320 us step at N = 37.  Bit for bit
+        the reference when both run from one numba cache (test_compiled_step says why
+        not always).
+        """
+        solver = self.model.solver
+        st = solver.settings
+        x, u = self._state[0], self._state[1]
+        shape = (self.n,) if elastic is not None else (1,)
+        u = _as_displacements(u, shape)
+        if self._prev is not None:
+            xp, up, fp, dp = self._prev
+            up = _as_displacements(up, shape)
+        else:
+            xp, up, fp, dp = x, u, self._forces, 0.0
+        path = elastic if elastic is not None else _RIGID
+        if x.shape != (self.n, 6) or xp.shape != x.shape or fp.shape != (self.n,):
+            # The kernel does not check bounds (see solver._solve_active_kernel).
+            raise ValueError(f"warm solve: state {x.shape}, previous {xp.shape}, forces "
+                             f"{fp.shape} for {self.n} balls")
+        out, iterations, speed = kernel.warm_solve(
+            x, u, xp, up, fp, float(dp), self._forces, self._active, d_psi, pair_idx, centres,
+            sign, *solver.kernel_constants(), scale, axial_load_n, rear, front,
+            *solver.b2b.linear_terms(sign), *path, tol, st.max_iterations,
+            st.max_step_rate, solver.displacement_limit(scale), st.max_active_set_changes,
+            budget if budget else -1, *self._work)
+        x, u, f_all, active, ok, exhausted, it, norm, terms, per_contact = out
+        sol = Solution(x=x, u=u if elastic is not None else float(u[0]), forces=f_all * scale,
+                       active=active, converged=bool(ok), iterations=int(it),
+                       residual=float(norm), terms=kernel_terms(terms, per_contact),
+                       b2b_speed=speed, budget_exhausted=bool(exhausted))
+        return sol, int(iterations)
+
+    def _guesses(self, d_psi):
+        """
+        Warm starts: the secant prediction in nut angle, then the previous solution.
+
+        The states (and B2B forces) of the last two steps are extrapolated linearly in the
+        nut angle; the plain previous solution is the fallback if Newton fails from there.
+        (Tried and not kept: a quadratic prediction, and not extrapolating balls whose
+        contacts changed; neither reduced the iterations.)
+        """
+        x, u = self._state[0], self._state[1]
+        out = []
+        if self._prev is not None and self._prev[3] != 0.0:
+            r = d_psi / self._prev[3]
+            if 0.0 < r <= 4.0:
+                xp, up, fp = self._prev[:3]
+                out.append((x + r * (x - xp), u + r * (u - up),
+                            self._forces + r * (self._forces - fp)))
+        out.append((x.copy(), u, self._forces))
+        return out
+
+
+class WholeScrew(_WarmStep, _PathSteps):
     """N balls in a recirculating nut, stepped quasi-statically (see module docstring)."""
 
     def __init__(self, config, model=None):
@@ -354,290 +656,6 @@ class WholeScrew:
         self._prev = prev
         return self._finish(sol, sign, omega_n, axial_load_n, theta, phi, pair_idx, rear, front,
                             t0)
-
-    def _fused_step(self, d_psi, sign, load_sign, omega_n, axial_load_n, budget, t0, tol):
-        """
-        Take a warm step of a rigid nut without lead errors in one compiled call.
-
-        ``kernel.warm_step``: ``advance``, ``_warm_solve`` and ``_finish``'s sums with the same
-        arithmetic.  Returns (StepResult, iterations), or (None, iterations) when the solve
-        failed from every guess (state untouched: the caller cold-starts).
-        """
-        solver = self.model.solver
-        st = solver.settings
-        x, u = self._state[0], self._state[1]
-        if self._prev is not None:
-            xp, up, fp, dp = self._prev
-        else:
-            xp, up, fp, dp = x, u, self._forces, 0.0
-        if x.shape != (self.n, 6) or xp.shape != x.shape or fp.shape != (self.n,):
-            # The kernel does not check bounds (see solver._solve_active_kernel).
-            raise ValueError(f"warm solve: state {x.shape}, previous {xp.shape}, forces "
-                             f"{fp.shape} for {self.n} balls")
-        scale = self.model.force_scale(self.n, axial_load_n)
-        consts = solver.kernel_constants()
-        key = (sign, id(consts[0]))
-        par = self._step_par.get(key)
-        if par is None:
-            par = kernel.pack_step_constants(self._geo, *consts[:4], consts[6],
-                                             *solver.b2b.linear_terms(sign))
-            self._step_par = {key: par, "cst": consts[0]}     # keeps consts[0] alive (its id)
-        ok, exhausted, iterations, _, u, loss_sum, torque_sum, b2b_sum, load_max, blk, x, \
-            active, groups = kernel.warm_step(
-                self.azimuth, self.ratio, x, xp, fp, self._forces, self._active, par,
-                consts[4], consts[5], *self._work, d_psi,
-                self.nut_angle + self.config.track.track_start_rad, sign, float(u), float(up),
-                float(dp), scale, axial_load_n, tol, st.max_iterations, st.max_step_rate,
-                solver.displacement_limit(scale), st.max_active_set_changes,
-                budget if budget else -1, omega_n)
-        iterations = int(iterations)
-        if not (ok or exhausted):
-            return None, iterations
-        # Real-time mode: an unfinished iterate is kept too, converged = False.
-        self._prev = (self._state[0], self._state[1], self._forces, d_psi)
-        self._state = (x, u, sign, load_sign)
-        self.azimuth, self.ratio, self._forces = blk[0], blk[3], blk[6]
-        self._active = active
-        rear, front = groups[0].tolist(), groups[1].tolist()
-        return self._result(omega_n, axial_load_n, loss_sum, torque_sum, b2b_sum, load_max,
-                            bool(ok), iterations, blk[1], blk[2], blk[4], blk[8:12].T, blk[5],
-                            _groups(rear, front, blk[7, :len(rear)].tolist()), t0), iterations
-
-    def step_path(self, nut_angles_rad, nut_velocities_rad_s, axial_loads_n, dt_s):
-        """
-        Step through the given points in turn: sub-steps, then an answered last step.
-
-        The same steps as ``step(angle, velocity, load, dt_s, substep=True)`` for every point
-        but the last and ``step(..., substep=False)`` for the last, with the same results
-        (iterations included), taken in one compiled call while they are warm steps of the
-        same direction and load sign (``kernel.warm_steps``); a step that is not (a cold
-        start, a reversal, no load, a failed warm solve, a lead error) and the steps after
-        it are taken by ``step``.  Measured need: the Python around each step and its call
-        was a fifth to a third of a sub-step at 20 rev/s and N = 37 (bench_warm_step.py).
-
-        Parameters
-        ----------
-        nut_angles_rad, nut_velocities_rad_s, axial_loads_n : sequence of float
-            The points, one per step (as ``step``'s arguments) [rad], [rad/s], [N].
-        dt_s : float
-            Time of each step [s].
-
-        Returns
-        -------
-        StepResult
-            The last step's; its ``substeps_not_converged`` counts the sub-steps before it
-            that did not converge, its ``substep_iterations`` their Newton iterations (a
-            sub-step's own result is not returned).
-
-        """
-        t0 = time.perf_counter()
-        angles = np.asarray(nut_angles_rad, dtype=float).ravel()
-        w = np.asarray(nut_velocities_rad_s, dtype=float).ravel()
-        loads = np.asarray(axial_loads_n, dtype=float).ravel()
-        k = angles.shape[0]
-        if k == 0 or w.shape != (k,) or loads.shape != (k,):
-            raise ValueError(f"step_path: {k} angles, {w.shape[0]} velocities and "
-                             f"{loads.shape[0]} loads (one of each per step, at least one)")
-        done, res, missed, sub_it = self._path_fused(angles, w, loads, float(dt_s))
-        for j in range(done, k):
-            if res is not None:
-                missed += not res.converged
-                sub_it += res.iterations
-            res = self.step(angles[j], w[j], loads[j], dt_s, substep=j < k - 1)
-        res.substeps_not_converged = missed
-        res.substep_iterations = sub_it
-        res.solve_time_s = time.perf_counter() - t0
-        return res
-
-    def _path_fused(self, angles, w, loads, dt_s):
-        """
-        Take the leading warm steps of a path in one compiled call (``step_path``).
-
-        Returns (steps done, the last one's StepResult if that was the path's last step else
-        None, sub-steps not converged, their iterations).
-        """
-        solver = self.model.solver
-        if not (self._state is not None and self._geo is not None and solver.use_kernel
-                and getattr(self._warm_solve, "__func__", None) is _COMPILED_WARM_SOLVE):
-            return 0, None, 0, 0
-        sign, load_sign = self._state[2], self._state[3]
-        elastic = self.config.load_distribution == "elastic"
-        buf = self._path_buf
-        if buf is None:
-            buf = self._path_buffers(elastic)
-        consts = solver.kernel_constants()
-        key = (sign, id(consts[0]))
-        par = self._step_par.get(key)
-        if par is None:
-            par = kernel.pack_step_constants(self._geo, *consts[:4], consts[6],
-                                             *solver.b2b.linear_terms(sign))
-            self._step_par = {key: par, "cst": consts[0]}     # keeps consts[0] alive (its id)
-        # The state as ``step`` keeps it, into the model's own buffer unless it is there
-        # already (the last step was a path's); the previous step's first, since it may be
-        # the buffer's current x.
-        x, u = self._state[0], self._state[1]
-        if self._prev is not None:
-            xp, up, fp, dp = self._prev
-        else:
-            xp, up, fp, dp = x, u, self._forces, 0.0
-        v = buf["views"]
-        if not (x is v[0] and xp is v[1] and fp is v[3] and self._forces is v[2]
-                and self.azimuth is v[4] and self.ratio is v[5] and self._active is v[6]):
-            v[1][:] = xp
-            v[3][:] = fp
-            v[8][:] = up
-            v[0][:] = x
-            v[2][:] = self._forces
-            v[4][:] = self.azimuth
-            v[5][:] = self.ratio
-            v[6][:] = self._active
-        v[7][:] = u
-        state = buf["state"]
-        state[16 * self.n] = dp
-        st, cfg = solver.settings, self.config.solver
-        settings = buf["settings"]
-        settings[0] = sign
-        settings[1] = load_sign
-        settings[2] = st.max_iterations
-        settings[3] = st.max_active_set_changes
-        settings[4] = cfg.realtime_max_iterations or -1
-        settings[5] = st.max_step_rate
-        settings[6] = self.nut_angle
-        settings[11] = cfg.tolerance
-        settings[12] = cfg.substep_tolerance
-        settings[13] = solver.disp_limit
-        result = buf["result"]
-        blk, groups = kernel.warm_steps(state, v[6], angles, w, loads, par, buf["epar"],
-                                        consts[4], consts[5], *self._work, settings, result)
-        done = int(result[0])
-        k = angles.shape[0]
-        if done:
-            # ``step``'s bookkeeping of the steps done: the state is the buffer's (views
-            # into it; a copy of this model copies them, see __copy__).
-            self.nut_angle = float(angles[done - 1])
-            for _ in range(done):
-                self.time += dt_s       # as ``step`` sums it, step by step
-            u, up = (v[7], v[8]) if elastic else (float(v[7][0]), float(v[8][0]))
-            self._prev = (v[1], up, v[3], float(state[16 * self.n]))
-            self._state = (v[0], u, sign, load_sign)
-            self._forces, self.azimuth, self.ratio, self._active = v[2], v[4], v[5], v[6]
-        missed = int(result[9])
-        if done < k:
-            return done, None, missed, int(result[10])
-        rear, front = groups[0].tolist(), groups[1].tolist()
-        loss_sum, torque_sum, b2b_sum, load_max = result[5:9].tolist()
-        res = self._result(float(w[k - 1]), float(loads[k - 1]), loss_sum, torque_sum,
-                           b2b_sum, load_max, bool(result[1]), int(result[3]), blk[1],
-                           blk[2], blk[4], blk[8:12].T, blk[5],
-                           _groups(rear, front, blk[7, :len(rear)].tolist()),
-                           time.perf_counter())
-        return done, res, missed, int(result[10] - result[3])
-
-    def _path_buffers(self, elastic):
-        """Make ``kernel.warm_steps``' buffers of this model and views into its state."""
-        n = self.n
-        m = n if elastic else 1
-        state = np.zeros(kernel.state_size(n, elastic))
-        o = 16 * n + 1
-        # x, previous x, forces, previous forces, azimuth, ratio, active, u, previous u
-        views = (state[2 * n:8 * n].reshape(n, 6), state[8 * n:14 * n].reshape(n, 6),
-                 state[14 * n:15 * n], state[15 * n:16 * n], state[0:n], state[n:2 * n],
-                 np.zeros(n, dtype=bool), state[o:o + m], state[o + m:o + 2 * m])
-        settings = np.zeros(kernel.SETTINGS_SIZE)
-        settings[7] = self.config.track.track_start_rad
-        settings[8] = self.model.preload_load()
-        settings[9] = -1.0 if self._preload else self.config.solver.min_axial_load_n
-        settings[10] = self.max_axial_load_n
-        settings[14] = self.model.ball.hertz[0].coef_delta_m_per_n23
-        self._path_buf = {
-            "state": state, "views": views, "settings": settings,
-            "result": np.zeros(kernel.RESULT_SIZE),
-            "epar": kernel.pack_elastic_constants(self.config.geometry.lead_m,
-                                                  self.config.elastic) if elastic
-            else np.zeros(0)}
-        return self._path_buf
-
-    def _warm_solve_numpy(self, d_psi, centres, sign, axial_load_n, scale, pair_idx, rear, front,
-                          budget, elastic, tol):
-        """
-        Solve a warm step from the guesses in turn: the readable reference of ``_warm_solve``.
-
-        Returns (the first ``Solution`` that converged or used up the budget, else the last;
-        the iterations of all).  Runs the solver's own path (numpy, or the compiled Newton
-        per active set).
-        """
-        sol = None
-        iterations = 0
-        guesses = self._guesses(d_psi)
-        for gx, gu, gf in guesses[:1] if budget else guesses:
-            # Closed pairs keep their predicted force > 0; open ones close if the rear ball
-            # is predicted faster (the active-set loop corrects either guess).
-            faster = gx[rear, 2] * sign > gx[front, 2] * sign
-            active = (self._active[pair_idx] & (gf[pair_idx] > 0.0)) | faster
-            sol = self.model.solver.solve(gx, gu, centres, sign, axial_load_n, scale, rear,
-                                          front, active, gf[pair_idx], budget, elastic, tol)
-            iterations += sol.iterations
-            if sol.converged or sol.budget_exhausted:
-                break
-        return sol, iterations
-
-    def _warm_solve(self, d_psi, centres, sign, axial_load_n, scale, pair_idx, rear, front,
-                    budget, elastic, tol):
-        """
-        ``_warm_solve_numpy`` in one compiled call (``kernel.warm_solve``), same arithmetic.
-
-        Measured need: the Python around the compiled Newton (guesses, active
-        set, argument packing) cost about 90 us of a 320 us step at N = 37.  Bit for bit
-        the reference when both run from one numba cache (test_compiled_step says why
-        not always).
-        """
-        solver = self.model.solver
-        st = solver.settings
-        x, u = self._state[0], self._state[1]
-        shape = (self.n,) if elastic is not None else (1,)
-        u = _as_displacements(u, shape)
-        if self._prev is not None:
-            xp, up, fp, dp = self._prev
-            up = _as_displacements(up, shape)
-        else:
-            xp, up, fp, dp = x, u, self._forces, 0.0
-        path = elastic if elastic is not None else _RIGID
-        if x.shape != (self.n, 6) or xp.shape != x.shape or fp.shape != (self.n,):
-            # The kernel does not check bounds (see solver._solve_active_kernel).
-            raise ValueError(f"warm solve: state {x.shape}, previous {xp.shape}, forces "
-                             f"{fp.shape} for {self.n} balls")
-        out, iterations, speed = kernel.warm_solve(
-            x, u, xp, up, fp, float(dp), self._forces, self._active, d_psi, pair_idx, centres,
-            sign, *solver.kernel_constants(), scale, axial_load_n, rear, front,
-            *solver.b2b.linear_terms(sign), *path, tol, st.max_iterations,
-            st.max_step_rate, solver.displacement_limit(scale), st.max_active_set_changes,
-            budget if budget else -1, *self._work)
-        x, u, f_all, active, ok, exhausted, it, norm, terms, per_contact = out
-        sol = Solution(x=x, u=u if elastic is not None else float(u[0]), forces=f_all * scale,
-                       active=active, converged=bool(ok), iterations=int(it),
-                       residual=float(norm), terms=kernel_terms(terms, per_contact),
-                       b2b_speed=speed, budget_exhausted=bool(exhausted))
-        return sol, int(iterations)
-
-    def _guesses(self, d_psi):
-        """
-        Warm starts: the secant prediction in nut angle, then the previous solution.
-
-        The states (and B2B forces) of the last two steps are extrapolated linearly in the
-        nut angle; the plain previous solution is the fallback if Newton fails from there.
-        (Tried and not kept: a quadratic prediction, and not extrapolating balls whose
-        contacts changed; neither reduced the iterations.)
-        """
-        x, u = self._state[0], self._state[1]
-        out = []
-        if self._prev is not None and self._prev[3] != 0.0:
-            r = d_psi / self._prev[3]
-            if 0.0 < r <= 4.0:
-                xp, up, fp = self._prev[:3]
-                out.append((x + r * (x - xp), u + r * (u - up),
-                            self._forces + r * (self._forces - fp)))
-        out.append((x.copy(), u, self._forces))
-        return out
 
     def _finish(self, sol, sign, omega_n, axial_load_n, theta, phi, pair_idx, rear, front, t0):
         """Store the state and build the StepResult."""
