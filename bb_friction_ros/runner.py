@@ -291,7 +291,7 @@ class _Steps:
 
     def warm_up(self, axial_load_n, nut_velocity_rad_s):
         """
-        Run one reset, a cold step and a warm step, then forget them (``stats`` untouched).
+        Run a reset, a cold step, a warm step and a path, then forget them (``stats`` kept).
 
         Pays compilation and first-solve costs before inputs arrive, so a live node's
         first input is not late; node and replay both do it (identical state after).  The
@@ -306,6 +306,12 @@ class _Steps:
         self.screw.step(math.copysign(step_rad, nut_velocity_rad_s), nut_velocity_rad_s,
                         axial_load_n, step_rad / max(abs(nut_velocity_rad_s), 1e-9))
         self._step_time_s = time.perf_counter() - t0   # a warm step prices the first profile
+        if hasattr(self.screw, "step_path"):
+            # the steps of an input in one call (kernel.warm_steps), loaded here too
+            w = nut_velocity_rad_s
+            a = math.copysign(step_rad, w)
+            self.screw.step_path([2.0 * a, 3.0 * a], [w, w], [axial_load_n] * 2,
+                                 step_rad / max(abs(w), 1e-9))
         self.reset()
 
     def _step_to(self, sample, extra, plan):

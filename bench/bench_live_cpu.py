@@ -39,7 +39,7 @@ STEPS_DEG = (1.8, 3.6, 7.2, 14.4)
 
 
 def _counting(runner):
-    """Count the model steps and Newton iterations of ``runner`` (wraps its screw's step)."""
+    """Count the model steps and Newton iterations of ``runner`` (wraps step, step_path)."""
     screw = runner.screw
     step = screw.step
     counts = [0, 0]
@@ -50,6 +50,18 @@ def _counting(runner):
         counts[1] += r.iterations
         return r
     screw.step = counted
+    if hasattr(screw, "step_path"):
+        path = screw.step_path
+
+        def counted_path(angles, *args, **kw):
+            # step_path calls step itself for the steps it does not take in one call:
+            # counted here once, as the path's
+            before = list(counts)
+            r = path(angles, *args, **kw)
+            counts[0] = before[0] + len(angles)
+            counts[1] = before[1] + r.iterations + r.substep_iterations
+            return r
+        screw.step_path = counted_path
     return counts
 
 

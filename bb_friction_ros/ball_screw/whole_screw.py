@@ -6,6 +6,7 @@ API (a stepping object, for the simulation, a ROS node or bag replay)::
     screw = WholeScrew(config)                 # builds Hertz constants and friction maps
     screw.reset(nut_angle_rad=0.0)             # balls evenly spaced over the loaded track
     r = screw.step(nut_angle_rad, nut_velocity_rad_s, axial_load_n, dt_s)   # StepResult
+    r = screw.step_path(angles, velocities, loads, dt_s)   # sub-steps, then the last one
 
 ``step`` takes the MEASURED nut angle: each ball's azimuth advances by its orbit ratio
 omega_B / omega_N (from the previous step) times the nut-angle increment, so the nut may
