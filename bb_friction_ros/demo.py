@@ -27,7 +27,10 @@ def run_demo(out, events, speed=1.0):
     n_inputs = sum(e.kind == "nut_state" for e in events)
     print(f"demo recording: {bag} ({n_inputs} nut_state messages); playing it through "
           f"friction_node at {speed:g}x ...", flush=True)
-    preds, groups, diag, _ = play_through_node(events, {"reliable_qos": True}, speed=speed)
+    # Ctrl-C is the demo's own (exit 130): rclpy's handlers, installed at init, could take a
+    # SIGINT that came while they were being put in place, and the demo ran on to exit 0
+    preds, groups, diag, _ = play_through_node(events, {"reliable_qos": True}, speed=speed,
+                                               ros_signal_handlers=False)
     live = out / "live"
     live.mkdir(exist_ok=True)
     lat = np.array([p["model_latency_s"] for p in preds])

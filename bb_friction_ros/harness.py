@@ -171,8 +171,15 @@ class FrictionNodeHarness:
 
     def __init__(self, parameters=None, params_file=None, domain_id=None, context=None,
                  namespace=None, ros_args=(),
-                 input_topics=(interface.NUT_STATE, interface.AXIAL_LOAD)):
-        """Keep the settings; ``start()`` (or ``with``) starts the node."""
+                 input_topics=(interface.NUT_STATE, interface.AXIAL_LOAD),
+                 ros_signal_handlers=True):
+        """
+        Keep the settings; ``start()`` (or ``with``) starts the node.
+
+        ``ros_signal_handlers`` False: the context is initialised without rclpy's SIGINT and
+        SIGTERM handlers (a command line tool that turns Ctrl-C into its own exit: Python's
+        KeyboardInterrupt reaches it, with no rclpy handler in between).
+        """
         self.parameters = dict(parameters or {})
         self.params_file = None if params_file is None else str(params_file)
         self.domain_id = local_domain_id() if domain_id is None else int(domain_id)
@@ -181,6 +188,7 @@ class FrictionNodeHarness:
         self.namespace = namespace
         self.ros_args = list(ros_args)
         self.input_topics = tuple(input_topics)
+        self.ros_signal_handlers = bool(ros_signal_handlers)
         self.node = None
         self.io = None
         self._executor = None
@@ -202,7 +210,11 @@ class FrictionNodeHarness:
         os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
         if self._own_context:
             self.context = rclpy.Context()
-            rclpy.init(context=self.context, domain_id=self.domain_id)
+            options = {}
+            if not self.ros_signal_handlers:
+                from rclpy.signals import SignalHandlerOptions
+                options["signal_handler_options"] = SignalHandlerOptions.NO
+            rclpy.init(context=self.context, domain_id=self.domain_id, **options)
         self._switch_interval = sys.getswitchinterval()
         sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)       # as FrictionNode.__init__ does
         try:
@@ -460,14 +472,16 @@ def prediction_dict(msg):
 
 
 def play_through_node(events, parameters=None, context=None, speed=1.0,
-                      settle_s=DEFAULT_TIMEOUT_S, lockstep=False):
+                      settle_s=DEFAULT_TIMEOUT_S, lockstep=False, ros_signal_handlers=True):
     """
     Play ``events`` through a fresh in-process friction_node (see FrictionNodeHarness.play).
 
     With ``lockstep`` (exact comparisons, not timing) no answer is too old to publish:
-    ``max_answer_age_s`` is 10 s unless ``parameters`` set it.
+    ``max_answer_age_s`` is 10 s unless ``parameters`` set it.  ``ros_signal_handlers``: as
+    FrictionNodeHarness's.
     """
     if lockstep:
         parameters = {"max_answer_age_s": 10.0, **(parameters or {})}
-    with FrictionNodeHarness(parameters, context=context) as harness:
+    with FrictionNodeHarness(parameters, context=context,
+                             ros_signal_handlers=ros_signal_handlers) as harness:
         return harness.play(events, speed=speed, lockstep=lockstep, settle_s=settle_s)
