@@ -173,13 +173,7 @@ class FrictionNodeHarness:
                  namespace=None, ros_args=(),
                  input_topics=(interface.NUT_STATE, interface.AXIAL_LOAD),
                  ros_signal_handlers=True):
-        """
-        Keep the settings; ``start()`` (or ``with``) starts the node.
-
-        ``ros_signal_handlers`` False: the context is initialised without rclpy's SIGINT and
-        SIGTERM handlers (a command line tool that turns Ctrl-C into its own exit: Python's
-        KeyboardInterrupt reaches it, with no rclpy handler in between).
-        """
+        """Keep the settings (``ros_signal_handlers``: ``init_context``'s); start() starts."""
         self.parameters = dict(parameters or {})
         self.params_file = None if params_file is None else str(params_file)
         self.domain_id = local_domain_id() if domain_id is None else int(domain_id)
@@ -200,7 +194,6 @@ class FrictionNodeHarness:
     # --- life cycle -----------------------------------------------------------------------
     def start(self):
         """Start the node and the harness's endpoints; wait until the inputs are matched."""
-        import rclpy
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
         from rclpy.parameter import Parameter
@@ -209,12 +202,7 @@ class FrictionNodeHarness:
         from bb_friction_ros.node import FrictionNode, GIL_SWITCH_INTERVAL_S
         os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
         if self._own_context:
-            self.context = rclpy.Context()
-            options = {}
-            if not self.ros_signal_handlers:
-                from rclpy.signals import SignalHandlerOptions
-                options["signal_handler_options"] = SignalHandlerOptions.NO
-            rclpy.init(context=self.context, domain_id=self.domain_id, **options)
+            self.context = init_context(self.domain_id, self.ros_signal_handlers)
         self._switch_interval = sys.getswitchinterval()
         sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)       # as FrictionNode.__init__ does
         try:
@@ -469,6 +457,24 @@ def prediction_dict(msg):
     out = {"stamp_s": msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec}
     out.update((name, getattr(msg, name)) for name in interface.PREDICTION_FIELDS)
     return out
+
+
+def init_context(domain_id, ros_signal_handlers=True):
+    """
+    Return a new initialised rclpy Context on ``domain_id``.
+
+    ``ros_signal_handlers`` False: without rclpy's SIGINT and SIGTERM handlers, for a command
+    line tool that turns Ctrl-C into its own exit: Python's KeyboardInterrupt reaches it with
+    no rclpy handler in between (handlers are per process, put in place at the first init).
+    """
+    import rclpy
+    context = rclpy.Context()
+    options = {}
+    if not ros_signal_handlers:
+        from rclpy.signals import SignalHandlerOptions
+        options["signal_handler_options"] = SignalHandlerOptions.NO
+    rclpy.init(context=context, domain_id=domain_id, **options)
+    return context
 
 
 def play_through_node(events, parameters=None, context=None, speed=1.0,

@@ -206,13 +206,7 @@ class _PathSteps:
         buf = self._path_buf
         if buf is None:
             buf = self._path_buffers(elastic)
-        consts = solver.kernel_constants()
-        key = (sign, id(consts[0]))
-        par = self._step_par.get(key)
-        if par is None:
-            par = kernel.pack_step_constants(self._geo, *consts[:4], consts[6],
-                                             *solver.b2b.linear_terms(sign))
-            self._step_par = {key: par, "cst": consts[0]}     # keeps consts[0] alive (its id)
+        consts, par = self._step_constants(solver, sign)
         # The state as ``step`` keeps it, into the model's own buffer unless it is there
         # already (the last step was a path's); the previous step's first, since it may be
         # the buffer's current x.
@@ -307,6 +301,22 @@ class _WarmStep:
     reference path (``_warm_solve_numpy``), from its guesses.
     """
 
+    def _step_constants(self, solver, sign):
+        """
+        Return (the solver's kernel constants, the compiled step's packed constants of ``sign``).
+
+        Packed once per direction and per set of kernel constants (a cold start's
+        continuation makes others), for ``kernel.warm_step`` and ``kernel.warm_steps`` alike.
+        """
+        consts = solver.kernel_constants()
+        key = (sign, id(consts[0]))
+        par = self._step_par.get(key)
+        if par is None:
+            par = kernel.pack_step_constants(self._geo, *consts[:4], consts[6],
+                                             *solver.b2b.linear_terms(sign))
+            self._step_par = {key: par, "cst": consts[0]}     # keeps consts[0] alive (its id)
+        return consts, par
+
     def _fused_step(self, d_psi, sign, load_sign, omega_n, axial_load_n, budget, t0, tol):
         """
         Take a warm step of a rigid nut without lead errors in one compiled call.
@@ -327,13 +337,7 @@ class _WarmStep:
             raise ValueError(f"warm solve: state {x.shape}, previous {xp.shape}, forces "
                              f"{fp.shape} for {self.n} balls")
         scale = self.model.force_scale(self.n, axial_load_n)
-        consts = solver.kernel_constants()
-        key = (sign, id(consts[0]))
-        par = self._step_par.get(key)
-        if par is None:
-            par = kernel.pack_step_constants(self._geo, *consts[:4], consts[6],
-                                             *solver.b2b.linear_terms(sign))
-            self._step_par = {key: par, "cst": consts[0]}     # keeps consts[0] alive (its id)
+        consts, par = self._step_constants(solver, sign)
         ok, exhausted, iterations, _, u, loss_sum, torque_sum, b2b_sum, load_max, blk, x, \
             active, groups = kernel.warm_step(
                 self.azimuth, self.ratio, x, xp, fp, self._forces, self._active, par,
