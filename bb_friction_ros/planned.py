@@ -28,7 +28,7 @@ from bb_friction_ros.config import BBFrictionError, check_choice, field, from_ma
 from bb_friction_ros.empirical_terms import dahl_state, NOT_FRICTION, TermSet
 from bb_friction_ros.model_file import NoPhysics
 from bb_friction_ros.node_parameters import B2B_AVERAGED, B2B_FEEDFORWARDS, NodeParameters
-from bb_friction_ros.drive import run_samples, SampleColumns
+from bb_friction_ros.drive import run_samples, SampleColumns, samples_of_events
 from bb_friction_ros.runner import load_checked_model, ModelRunner
 
 # The runner steps when the angle turned a model step, when the direction changed, or when a
@@ -260,23 +260,12 @@ def read_trajectory(path, nut_joint="nut_joint"):
 
 def _bag_trajectory(path, nut_joint):
     from bb_friction_ros.bags import read_events
-    from bb_friction_ros.runner import InputAssembler, InputError
     events, _ = read_events(path)
-    assembler = InputAssembler(nut_joint, NodeParameters().max_axial_load_n)
-    rows = []
-    for e in events:
-        try:
-            if e.kind == "axial_load":
-                assembler.on_axial_load(e.value)
-            elif e.kind == "nut_state":
-                s = assembler.on_nut_state(e.stamp_s, e.names, e.positions, e.velocities)
-                rows.append((s.stamp_s, s.nut_angle_rad, s.nut_velocity_rad_s, s.axial_load_n))
-        except InputError:
-            continue
-    if not rows:
+    cols = samples_of_events(events, nut_joint, NodeParameters().max_axial_load_n)
+    if not len(cols):
         raise PlannedTrajectoryError(f"{path}: no nut_state sample of joint {nut_joint!r} with "
                                      "an axial load before it")
-    return tuple(np.array(c) for c in zip(*rows))
+    return cols.stamp_s, cols.nut_angle_rad, cols.nut_velocity_rad_s, cols.axial_load_n
 
 
 def write_feedforward(out, ff, config_path, source):
