@@ -75,7 +75,8 @@ CHOICE_DOCS = {
                            "the paper's diagonal approximation",
     "physical.enabled": "try the model's own parameters (theta amplitude, friction "
                         "coefficient, preload) as candidates beside the empirical terms "
-                        "(the same as --physical)",
+                        "whenever a model of the screw is in use "
+                        "(false: the same as --no-physical)",
     "physical.prefer_model_parameter_on_tie": "keep the model's parameter when its reading "
                                               "takes its empirical twin's place one for one "
                                               "within bic_threshold (a tie); false: the "

@@ -52,10 +52,15 @@ def add_discrepancy_parser(subparsers):
                    help="bag topic of the motor current (std_msgs/Float64 or Float32, A; "
                    "its log time, put on the motion's clock through the nut states' log "
                    "times), read with --torque-constant-nm-per-a")
-    p.add_argument("--physical", action="store_true",
-                   help="also try the model's own parameters (contact-angle deviation, friction "
-                        "coefficient, preload) as candidates: ~18-24 model runs over the "
-                        "recording (settings discrepancy.physical)")
+    physical = p.add_mutually_exclusive_group()
+    physical.add_argument("--physical", action="store_true",
+                          help="try the model's own parameters (contact-angle deviation, "
+                               "friction coefficient, preload) as candidates: ~18-24 model "
+                               "runs over the recording (settings discrepancy.physical).  On "
+                               "by default whenever a model of the screw is in use; given "
+                               "explicitly, a run that cannot try them says why")
+    physical.add_argument("--no-physical", action="store_true",
+                          help="do not try the model's own parameters: empirical terms only")
     p.add_argument("--no-plots", action="store_true", help="write no PNG figures")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--json", action="store_true", help="print summary.json to stdout")
@@ -70,10 +75,10 @@ def run_discrepancy_command(args):
     from bb_friction_ros.discrepancy.workflow import OutputInUse, run_discrepancy
     from bb_friction_ros.node_parameters import NodeParameters
     settings = load_settings(args.settings)
-    if args.physical:
+    if args.physical or args.no_physical:
         import dataclasses
         settings = dataclasses.replace(settings, physical=dataclasses.replace(
-            settings.physical, enabled=True))
+            settings.physical, enabled=bool(args.physical)))
     replay_settings = NodeParameters(nut_joint=args.nut_joint,
                                      model_rate_hz=args.model_rate_hz)
     try:
@@ -83,7 +88,7 @@ def run_discrepancy_command(args):
             recompute=args.recompute_prediction, plots=not args.no_plots,
             progress=not args.no_progress, validate_path=args.validate,
             baseline=args.baseline, torque_constant_nm_per_a=args.torque_constant_nm_per_a,
-            current_topic=args.current_topic)
+            current_topic=args.current_topic, physical_asked=args.physical)
     except (InputProblem, OutputInUse) as exc:
         print(f"bb-friction discrepancy: {exc}", file=sys.stderr)
         return 2

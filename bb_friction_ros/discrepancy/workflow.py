@@ -623,7 +623,7 @@ def check_same_baseline(rec, rec2):
 def run_discrepancy(input_path, out, config=None, settings=None, replay_settings=None,
                     topics=None, recompute=False, plots=True, progress=False, validate_path=None,
                     baseline="model", torque_constant_nm_per_a=None,
-                    current_topic="motor_current"):
+                    current_topic="motor_current", physical_asked=False):
     """
     Run the whole workflow on a bag or CSV into directory ``out``; return (status, summary).
 
@@ -634,6 +634,9 @@ def run_discrepancy(input_path, out, config=None, settings=None, replay_settings
     ``baseline`` "zero": no model of this screw; every term is identified from the data.
     ``torque_constant_nm_per_a``: the measured torque is K times the motor current (CSV
     column ``motor_current_a``, bag topic ``current_topic``), for both recordings.
+    ``physical_asked``: the physical candidates were asked for explicitly (``--physical``),
+    so a run that cannot try them warns; on by default, they are skipped silently (the
+    reason is in summary.json's ``physical_skipped``).
     """
     from pathlib import Path
     from bb_friction_ros.bags import Topics
@@ -660,7 +663,8 @@ def run_discrepancy(input_path, out, config=None, settings=None, replay_settings
     with _only_run_in(out):
         remove_earlier_outputs(out)
         try:
-            return _analyse_into(out, rec, rec2, config, settings, load, plots)
+            return _analyse_into(out, rec, rec2, config, settings, load, plots,
+                                 physical_asked)
         except BaseException as exc:        # Ctrl-C, a full disk: mark the outputs partial
             try:
                 _write_summary(out, {"complete": False, "error": "interrupted" if isinstance(
@@ -671,19 +675,19 @@ def run_discrepancy(input_path, out, config=None, settings=None, replay_settings
 
 
 def _physical_ignored(settings, rec, config):
-    """Return why ``--physical`` cannot apply to this run, or None (it applies, or was off)."""
+    """Return why the physical candidates cannot apply to this run, or None (they apply, or
+    are off)."""
     if not settings.physical.enabled:
         return None
     if rec.info.get("baseline") == "zero":
-        return ("--physical was ignored: with no model of this screw (--baseline zero, or a "
-                "torque_pred_nm of 0) there are no model parameters to try")
+        return ("with no model of this screw (--baseline zero, or a torque_pred_nm of 0) "
+                "there are no model parameters to try")
     if physics_of(config) != "ball_screw":
-        return (f"--physical was ignored: {config} says physics: none, so there are no model "
-                "parameters to try")
+        return (f"{config} says physics: none, so there are no model parameters to try")
     return None
 
 
-def _analyse_into(out, rec, rec2, config, settings, load, plots):
+def _analyse_into(out, rec, rec2, config, settings, load, plots, physical_asked=False):
     """Analyse ``rec`` (and validate on ``rec2``) and write every output into ``out``."""
     import json
     from bb_friction_ros.discrepancy.report import write_report, write_insufficient_report
@@ -707,7 +711,9 @@ def _analyse_into(out, rec, rec2, config, settings, load, plots):
     summary = summary_of(a, rec.info)
     summary["augmented_config"] = str(augmented)
     summary["base_config"] = str(config)
-    summary["warnings"] += rec.info.get("notes", []) + ([ignored] if ignored else [])
+    summary["warnings"] += rec.info.get("notes", []) + (
+        [f"--physical was ignored: {ignored}"] if ignored and physical_asked else [])
+    summary["physical_skipped"] = ignored
     if v is not None:
         write_validation_csv(out / "validation" / "prediction.csv", v)
         summary["validation"] = v.summary

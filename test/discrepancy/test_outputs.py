@@ -125,3 +125,15 @@ def test_physical_with_no_model_of_the_screw_says_it_was_ignored(rec, tmp_path):
     s = json.loads((out / "summary.json").read_text())
     assert s["physical"] is None
     assert any("--physical was ignored" in w for w in s["warnings"])
+
+
+def test_physical_candidates_on_by_default_are_skipped_quietly_without_a_model(rec, tmp_path):
+    # on by default, they apply only where a model of the screw is in use: a zero-baseline
+    # run skips them without a warning, and says why in its own key
+    out = tmp_path / "o"
+    f = write_csv(tmp_path / "a.csv", rec)
+    assert run_cli([f, "--out", out, "--no-progress", "--no-plots", "--baseline", "zero"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["physical"] is None
+    assert not any("--physical" in w for w in s["warnings"])
+    assert "no model of this screw" in s["physical_skipped"]

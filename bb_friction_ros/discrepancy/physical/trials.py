@@ -31,10 +31,13 @@ CHI2_1_95 = 3.841458820694124
 class PhysicalSettings:
     """Settings of the physical candidates (``discrepancy: physical:``)."""
 
-    # Off by default: each trial is a model run over the recording (~18-24 per analysis), a
-    # cost the user asks for (``--physical``).  ``workflow.analyse`` tries them whenever it
-    # is given a PhysicsContext.
-    enabled: bool = False
+    # On by default whenever a model of the screw is in use: the model's own parameters are
+    # the first suspects of a discrepancy, and with the fused compiled step the ~20 trial
+    # runs of a 60 s, 1 kHz recording take seconds, not minutes (bench_discrepancy.py
+    # --physical prints the wall time).  ``--no-physical`` turns them off.  With no model of
+    # the screw (``--baseline zero``, ``physics: none``) there is nothing to try and they are
+    # skipped.  ``workflow.analyse`` tries them whenever it is given a PhysicsContext.
+    enabled: bool = True
     theta_max_deg: float = field(5.0, "deg", "largest theta amplitude of the bracket (the "
                                  "bracket runs from 0 in theta_bracket_points steps)",
                                  lo=0.0, lo_open=True, hi=10.0)
