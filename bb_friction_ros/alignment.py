@@ -144,6 +144,15 @@ class _MeasuredRun:
                 self.head = 0
 
 
+def _goes_on(stamps, newest, tolerance_s, strict):
+    """Whether ``stamps`` go on from ``newest``, increasing by at most ``tolerance_s`` a time."""
+    if not stamps.size:
+        return True
+    steps = np.diff(stamps if newest is None else np.concatenate([[newest], stamps]))
+    rising = steps > 0.0 if strict else steps >= 0.0
+    return bool(np.all(np.isfinite(stamps)) and np.all(rising) and np.all(steps <= tolerance_s))
+
+
 class MeasuredAligner:
     """
     Measured torque at prediction stamps, run by run, as a stream.
@@ -184,6 +193,7 @@ class MeasuredAligner:
         self.samples = 0         # finite measured samples taken
         self.unmatched_predictions = 0    # released as NaN because max_held was reached
         self.unmatched_measured = 0       # dropped because max_held was reached
+        self._deferred = False   # add_* hold what they would release until ``release``
 
     @property
     def runs(self):
@@ -200,10 +210,47 @@ class MeasuredAligner:
         """Single stamps far ahead of their stream: {"prediction": n, "measured": n}."""
         return {"prediction": self._p_runs.ahead, "measured": self._m_runs.ahead}
 
+    def defer(self, measured_stamps_s, prediction_stamps_s):
+        """
+        Hold releases until ``release`` for a batch, if that releases the same; say if it did.
+
+        A prediction's measurement is decided by the measured samples around its stamp.
+        While both streams go on increasing from where they are, by at most the tolerance
+        at a time (no late sample, restart or stamp far ahead; no repeated measured
+        stamp), a measured sample taken later lies after every bracket already known and
+        no sample dropped as no longer needed is needed, so releasing once per batch gives
+        every prediction the value a release after each sample gives, in the same order:
+        replay's stream releases once per block of messages instead of twice per sample.
+        ``measured_stamps_s``, ``prediction_stamps_s``: the batch's stamps in order (those
+        of predictions may include samples that are then refused); the batch must stay
+        within ``max_held`` both ways.
+        """
+        m, p = (np.asarray(s, dtype=float) for s in (measured_stamps_s, prediction_stamps_s))
+        m_runs, p_runs, tol = self._m_runs, self._p_runs, self.tolerance_s
+        if m_runs.suspects or p_runs.suspects or m_runs.jump_from is not None \
+                or p_runs.jump_from is not None:
+            return False
+        if not (_goes_on(m, m_runs.newest, tol, strict=True)
+                and _goes_on(p, p_runs.newest, tol, strict=False)):
+            return False
+        if p.size and self._p_max is not None and not self._p_max <= p[0]:
+            return False
+        if self.max_held is not None and (
+                len(self._preds) + p.size >= self.max_held
+                or sum(map(len, self._meas)) + m.size >= self.max_held):
+            return False
+        self._deferred = True
+        return True
+
+    def release(self):
+        """End a batch (``defer``): return what it holds back, in prediction order."""
+        self._deferred = False
+        return self._drain()
+
     def add_measured(self, stamp_s, value_nm):
         """Take one measured sample (non-finite values are skipped)."""
         if not (math.isfinite(stamp_s) and math.isfinite(value_nm)):
-            return self._drain()
+            return [] if self._deferred else self._drain()
         self.samples += 1
         self._take_measured(self._m_runs.add(stamp_s, (stamp_s, value_nm)))
         while self._m_runs.outliers:          # a stamp far ahead: it brackets nothing
@@ -211,7 +258,7 @@ class MeasuredAligner:
             for m in reversed(self._meas):
                 if m.remove(stamp):
                     break
-        return self._drain()
+        return [] if self._deferred else self._drain()
 
     def _take_measured(self, decided):
         for run, (stamp, value) in decided:
@@ -238,7 +285,7 @@ class MeasuredAligner:
         self._decide(self._p_runs.add(stamp_s, entry))
         while self._p_runs.outliers:          # a stamp far ahead: no measurement, at once
             self._p_runs.outliers.pop()[0] = "ahead"
-        return self._drain()
+        return [] if self._deferred else self._drain()
 
     def _decide(self, decided):
         """Set the runs of predictions now decided; track the newest stamp of the last run."""
@@ -251,6 +298,7 @@ class MeasuredAligner:
 
     def finish(self):
         """No more measured samples: resolve everything still waiting."""
+        self._deferred = False
         self._take_measured(self._m_runs.settle())
         self._decide(self._p_runs.settle())
         self._done = True
