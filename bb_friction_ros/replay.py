@@ -435,12 +435,16 @@ class _Sink:
         if self.aligner is None:
             self.lines.append(self.line % values)
         else:
-            self.emit(self.aligner.add_prediction(pred.stamp_s, (values, row)))
+            done = self.aligner.add_prediction(pred.stamp_s, (values, row))
+            if done:
+                self.emit(done)
 
     def measure(self, stamp_s, value):
         """Take one measured torque (aligned with the answers by stamp)."""
         if self.aligner is not None:
-            self.emit(self.aligner.add_measured(stamp_s, value))
+            done = self.aligner.add_measured(stamp_s, value)
+            if done:
+                self.emit(done)
 
     def defer(self, block, stamps, fast):
         """
