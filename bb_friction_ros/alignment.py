@@ -248,6 +248,8 @@ class MeasuredAligner:
 
     def release(self):
         """End a batch (``defer``): return what it holds back, in prediction order."""
+        if not self._deferred:
+            return []                   # no batch: each sample released what it could
         self._deferred = False
         # What add_* would have done one by one, for stamps going on in the current runs
         # (``defer``): every sample joins its stream's current run, the newest stamps move.
