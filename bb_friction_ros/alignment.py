@@ -144,6 +144,15 @@ class _MeasuredRun:
                 self.head = 0
 
 
+def _goes_on(stamps, newest, tolerance_s, strict):
+    """Whether ``stamps`` go on from ``newest``, increasing by at most ``tolerance_s`` a time."""
+    if not stamps.size:
+        return True
+    steps = np.diff(stamps if newest is None else np.concatenate([[newest], stamps]))
+    rising = steps > 0.0 if strict else steps >= 0.0
+    return bool(np.all(np.isfinite(stamps)) and np.all(rising) and np.all(steps <= tolerance_s))
+
+
 class MeasuredAligner:
     """
     Measured torque at prediction stamps, run by run, as a stream.
@@ -184,6 +193,7 @@ class MeasuredAligner:
         self.samples = 0         # finite measured samples taken
         self.unmatched_predictions = 0    # released as NaN because max_held was reached
         self.unmatched_measured = 0       # dropped because max_held was reached
+        self._deferred = False   # add_* hold what they would release until ``release``
 
     @property
     def runs(self):
@@ -200,10 +210,119 @@ class MeasuredAligner:
         """Single stamps far ahead of their stream: {"prediction": n, "measured": n}."""
         return {"prediction": self._p_runs.ahead, "measured": self._m_runs.ahead}
 
+    def defer(self, measured_stamps_s, prediction_stamps_s):
+        """
+        Hold releases until ``release`` for a batch, if that releases the same; say if it did.
+
+        A prediction's measurement is decided by the measured samples around its stamp.
+        While both streams go on increasing from where they are, by at most the tolerance
+        at a time (no late sample, restart or stamp far ahead; no repeated measured
+        stamp), a measured sample taken later lies after every bracket already known and
+        no sample dropped as no longer needed is needed, so releasing once per batch gives
+        every prediction the value a release after each sample gives, in the same order:
+        replay's stream releases once per block of messages instead of twice per sample.
+        ``measured_stamps_s``, ``prediction_stamps_s``: the batch's stamps in order (those
+        of predictions may include samples that are then refused); the batch must stay
+        within ``max_held`` both ways.
+        """
+        m, p = (np.asarray(s, dtype=float) for s in (measured_stamps_s, prediction_stamps_s))
+        m_runs, p_runs, tol = self._m_runs, self._p_runs, self.tolerance_s
+        if m_runs.suspects or p_runs.suspects or m_runs.jump_from is not None \
+                or p_runs.jump_from is not None:
+            return False
+        if not (_goes_on(m, m_runs.newest, tol, strict=True)
+                and _goes_on(p, p_runs.newest, tol, strict=False)):
+            return False
+        if p.size and self._p_max is not None and not self._p_max <= p[0]:
+            return False
+        if m.size and self._meas and self._meas[-1].stamps \
+                and not self._meas[-1].stamps[-1] < m[0]:
+            return False
+        if self.max_held is not None and (
+                len(self._preds) + p.size >= self.max_held
+                or sum(map(len, self._meas)) + m.size >= self.max_held):
+            return False
+        self._deferred = True
+        self._batch_m, self._batch_p = [], []
+        return True
+
+    def release(self):
+        """End a batch (``defer``): return what it holds back, in prediction order."""
+        if not self._deferred:
+            return []                   # no batch: each sample released what it could
+        self._deferred = False
+        # What add_* would have done one by one, for stamps going on in the current runs
+        # (``defer``): every sample joins its stream's current run, the newest stamps move.
+        measured, preds = self._batch_m, self._batch_p
+        self._batch_m = self._batch_p = None
+        if measured:
+            m_runs = self._m_runs
+            m_runs.started = True
+            m_runs.newest, m_runs.newest_item = measured[-1]
+            self.samples += len(measured)
+            if not self._meas or self._meas[-1].run != m_runs.run:
+                self._meas.append(_MeasuredRun(m_runs.run))
+            last = self._meas[-1]
+            last.stamps.extend([t for t, _ in measured])
+            last.values.extend([v for _, v in measured])
+        if preds:
+            p_runs = self._p_runs
+            p_runs.started = True
+            run = p_runs.run
+            for entry in preds:
+                entry[0] = run
+            self._preds.extend(preds)
+            p_runs.newest_item = preds[-1]
+            p_runs.newest = self._p_max = preds[-1][1]
+            self._p_run_decided = run
+        return self._drain_run() or self._drain()
+
+    def _drain_run(self):
+        """
+        Release the waiting predictions at once, as ``_drain`` one by one, where it can.
+
+        Where every waiting prediction belongs to the measured stream's current run (its
+        newest stamp confirmed, as ``defer`` leaves it): their values from the run's samples
+        as arrays, by ``_MeasuredRun.at``'s rule and arithmetic, up to the first that waits
+        for its upper bracket.  None where it cannot (``_drain`` then does).
+        """
+        preds, meas, m_runs = self._preds, self._meas, self._m_runs
+        if not preds:
+            return None
+        run = m_runs.run
+        if m_runs.jump_from is not None or any(entry[0] != run for entry in preds):
+            return None
+        while meas and meas[0].run < run:
+            meas.popleft()
+        if len(meas) != 1 or meas[0].run != run:
+            return None
+        current = meas[0]
+        st = np.asarray(current.stamps[current.head:], dtype=float)
+        sv = np.asarray(current.values[current.head:], dtype=float)
+        t = np.fromiter((entry[1] for entry in preds), dtype=float, count=len(preds))
+        i = np.searchsorted(st, t, side="right")       # first sample after t
+        lo = np.maximum(i - 1, 0)
+        exact = (i > 0) & (st[lo] == t) if st.size else np.zeros(t.size, dtype=bool)
+        known = exact | (i == 0) & (st.size > 0) | (i > 0) & (i < st.size)
+        n = int(np.argmin(known)) if not known.all() else t.size
+        if n == 0:
+            return None
+        hi = np.minimum(i, st.size - 1)
+        t0, t1, v0, v1 = st[lo[:n]], st[hi[:n]], sv[lo[:n]], sv[hi[:n]]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            values = v0 + (v1 - v0) * (t[:n] - t0) / (t1 - t0)
+        values = np.where(exact[:n], v0, np.where(i[:n] == 0, np.nan, values))
+        out = [(preds.popleft()[2], v) for v in values.tolist()]
+        self._trim()
+        return out
+
     def add_measured(self, stamp_s, value_nm):
         """Take one measured sample (non-finite values are skipped)."""
         if not (math.isfinite(stamp_s) and math.isfinite(value_nm)):
-            return self._drain()
+            return [] if self._deferred else self._drain()
+        if self._deferred:
+            self._batch_m.append((stamp_s, value_nm))
+            return []
         self.samples += 1
         self._take_measured(self._m_runs.add(stamp_s, (stamp_s, value_nm)))
         while self._m_runs.outliers:          # a stamp far ahead: it brackets nothing
@@ -211,7 +330,7 @@ class MeasuredAligner:
             for m in reversed(self._meas):
                 if m.remove(stamp):
                     break
-        return self._drain()
+        return [] if self._deferred else self._drain()
 
     def _take_measured(self, decided):
         for run, (stamp, value) in decided:
@@ -234,11 +353,14 @@ class MeasuredAligner:
     def add_prediction(self, stamp_s, payload):
         """Take one prediction stamp with the payload to return with its measurement."""
         entry = [None, stamp_s, payload]
+        if self._deferred:
+            self._batch_p.append(entry)
+            return []
         self._preds.append(entry)
         self._decide(self._p_runs.add(stamp_s, entry))
         while self._p_runs.outliers:          # a stamp far ahead: no measurement, at once
             self._p_runs.outliers.pop()[0] = "ahead"
-        return self._drain()
+        return [] if self._deferred else self._drain()
 
     def _decide(self, decided):
         """Set the runs of predictions now decided; track the newest stamp of the last run."""
@@ -251,6 +373,7 @@ class MeasuredAligner:
 
     def finish(self):
         """No more measured samples: resolve everything still waiting."""
+        self._deferred = False
         self._take_measured(self._m_runs.settle())
         self._decide(self._p_runs.settle())
         self._done = True
@@ -303,6 +426,12 @@ class MeasuredAligner:
                 self.unmatched_predictions += 1       # never held without bound
             self._preds.popleft()
             out.append((payload, value))
+        self._trim()
+        return out
+
+    def _trim(self):
+        """Drop the measured samples no later prediction can ask for."""
+        meas = self._meas
         # What later queries of this run can ask: a waiting prediction arrived when the newest
         # stamp was at least the head's, so it is no earlier than the head's stamp minus the
         # tolerance (else it started a new run); without one, a new prediction is no earlier
@@ -317,7 +446,6 @@ class MeasuredAligner:
         elif meas and not self._preds and self._p_max is not None \
                 and meas[0].run == self._p_run_decided:
             meas[0].trim_before(self._p_max - self.tolerance_s)
-        return out
 
 
 def measured_torque_at(events, stamps_s):

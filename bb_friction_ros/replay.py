@@ -435,12 +435,36 @@ class _Sink:
         if self.aligner is None:
             self.lines.append(self.line % values)
         else:
-            self.emit(self.aligner.add_prediction(pred.stamp_s, (values, row)))
+            done = self.aligner.add_prediction(pred.stamp_s, (values, row))
+            if done:
+                self.emit(done)
 
     def measure(self, stamp_s, value):
         """Take one measured torque (aligned with the answers by stamp)."""
         if self.aligner is not None:
-            self.emit(self.aligner.add_measured(stamp_s, value))
+            done = self.aligner.add_measured(stamp_s, value)
+            if done:
+                self.emit(done)
+
+    def defer(self, block, stamps, fast):
+        """
+        Let the aligner release the answers of ``block`` once, at its end, where it can.
+
+        Its measured torques and nut states must all be decoded (``fast``) for their
+        stamps to be known here (``MeasuredAligner.defer``); ``release`` ends the block.
+        """
+        if self.aligner is None:
+            return
+        kinds = block.kinds
+        meas = [i for i, kind in enumerate(kinds) if kind == "measured_torque"]
+        nut = [i for i, kind in enumerate(kinds) if kind == "nut_state"]
+        if all(fast[i] for i in meas) and all(fast[i] for i in nut):
+            self.aligner.defer([stamps[i] for i in meas], [stamps[i] for i in nut])
+
+    def release(self):
+        """Write the answers the aligner held back during a block (``defer``)."""
+        if self.aligner is not None:
+            self.emit(self.aligner.release())
 
     def flush(self, fh, finish=False):
         """Write what is queued (``finish``: the aligner's held answers too)."""
@@ -459,12 +483,23 @@ def _feed_block(block, runner, assembler, sink):
     other is decoded one by one into an Event (``feed_event``).  Each input message is
     copied to the output bag before what the node publishes for it.
     """
-    outbag = sink.outbag
-    clock = time.perf_counter
-    items, kinds = block.items, block.kinds
     fast = block.fast.tolist()
     stamps, stamps_ns = block.stamp_s.tolist(), block.stamp_ns.tolist()
     values, velocities = block.value.tolist(), block.velocity.tolist()
+    sink.defer(block, stamps, fast)
+    try:
+        _feed_items(block, runner, assembler, sink, fast, stamps, stamps_ns, values,
+                    velocities)
+    finally:
+        sink.release()      # what a failure leaves answered is written too
+
+
+def _feed_items(block, runner, assembler, sink, fast, stamps, stamps_ns, values,
+                velocities):
+    """Feed the messages of ``block`` one by one (``_feed_block``'s loop)."""
+    outbag = sink.outbag
+    clock = time.perf_counter
+    items, kinds = block.items, block.kinds
     if outbag is not None:
         copies, pending = outbag.copies, outbag.pending
     for i, kind in enumerate(kinds):

@@ -6,7 +6,8 @@ Asserts nothing; prints the figures.
 bench_replay_rate.py splits replay's CPU into the model, reading and "the rest" by
 subtracting separately measured parts, so the rest carries the noise of three measurements.
 Here it is measured directly: each replay runs in a child process in which
-``WholeScrew.step`` returns the results of the first ``RECORDED`` real steps over and
+``WholeScrew.step`` (and ``step_path``, which takes an input's sub-steps and its own step
+in one call) returns the results of the first ``RECORDED`` real calls over and
 over (the contact groups still change, so the output bag still writes them; the CPU of the
 real steps is subtracted); the runner's
 schedule, reading, decoding, alignment, CSV, plotted series and the output bag run as in a
@@ -49,6 +50,17 @@ def step(self, *args, **kw):
     k[0] = (k[0] + 1) % len(recorded)
     return recorded[k[0]]
 WholeScrew.step = step
+if hasattr(WholeScrew, "step_path"):
+    real_path, recorded_path, kp = WholeScrew.step_path, [], [0]
+    def step_path(self, *args, **kw):
+        if len(recorded_path) < int(sys.argv[5]):
+            c0 = time.process_time()
+            recorded_path.append(real_path(self, *args, **kw))
+            real_s[0] += time.process_time() - c0
+            return recorded_path[-1]
+        kp[0] = (kp[0] + 1) % len(recorded_path)
+        return recorded_path[kp[0]]
+    WholeScrew.step_path = step_path
 stream = R._stream
 def timed_stream(*args, **kw):
     real_s[0] = 0.0     # the runner's warm-up steps are not in the loop's cpu_s
@@ -104,6 +116,11 @@ def main():
             lo, med = min(cpus[name]), statistics.median(cpus[name])
             print(f"{rev_s:6g} {name:>5} {lo:9.3f} {med:7.3f} {lo / DURATION_S:12.4f}",
                   flush=True)
+        if args.baseline:
+            # each pair ran back to back under the same load: its ratio is the fair figure
+            ratios = [b / t for t, b in zip(cpus["this"], cpus["base"]) if t > 0]
+            print(f"{rev_s:6g} base/this per pair: median {statistics.median(ratios):.2f}x "
+                  f"(min {min(ratios):.2f}, max {max(ratios):.2f})", flush=True)
     print(f"load after: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
 
 

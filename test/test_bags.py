@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from bb_friction_ros.alignment import MeasuredAligner
 from bb_friction_ros.bags import BagError, Event, measured_torque_at, read_events, \
     write_events
 from bb_friction_ros.cli import main
@@ -431,3 +432,42 @@ def test_a_log_time_outside_a_bags_range_is_refused_naming_it(tmp_path, log_ns):
             out.write_raw(conn, log_ns, raw)
     assert str(err.value).startswith(f"{tmp_path / 'bag'}: cannot log a message on /x at "
                                      f"{log_ns} ns")
+
+
+def _aligned(messages, batch=None):
+    """Release (payload, value) of interleaved messages, per message or per ``batch``."""
+    aligner = MeasuredAligner()
+    aligner.deferred_batches = 0
+    out = []
+    for start in range(0, len(messages), batch or len(messages)):
+        part = messages[start:start + batch] if batch else messages
+        deferred = batch is not None and aligner.defer(
+            [t for kind, t, _ in part if kind == "m"], [t for kind, t, _ in part if kind == "p"])
+        for kind, t, v in part:
+            out += aligner.add_measured(t, v) if kind == "m" else aligner.add_prediction(t, v)
+        if deferred:
+            out += aligner.release()
+            aligner.deferred_batches += 1
+    return out + aligner.finish(), aligner
+
+
+@pytest.mark.parametrize("batch", [1, 3, 7, 64])
+def test_releasing_once_per_batch_gives_what_each_message_gives(batch):
+    rng = np.random.default_rng(3)
+    t = np.cumsum(rng.uniform(0.0005, 0.0015, 600))
+    t[100] = t[99]                      # a repeated measured stamp
+    t[200] -= 0.004                     # a late measured sample
+    t[300:] -= 2.0                      # a restart (a looping recording)
+    t[450] += 5.0                       # one stamp far ahead
+    p = t + rng.uniform(-0.0004, 0.0004, t.size)
+    p[250] -= 0.003                     # a late prediction
+    messages = []
+    for k in range(t.size):             # the measurement sometimes first, sometimes after
+        pair = [("m", float(t[k]), float(np.sin(t[k]))), ("p", float(p[k]), k)]
+        messages += pair if rng.random() < 0.5 else pair[::-1]
+    each, a1 = _aligned(messages)
+    batched, a2 = _aligned(messages, batch)
+    assert a2.deferred_batches > 0.25 * len(messages) / batch     # the anomalies aside
+    assert [k for k, _ in batched] == [k for k, _ in each] == list(range(t.size))
+    np.testing.assert_array_equal([v for _, v in batched], [v for _, v in each])
+    assert (a1.runs, a1.late, a1.ahead) == (a2.runs, a2.late, a2.ahead)
