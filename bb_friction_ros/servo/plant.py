@@ -35,7 +35,7 @@ is needed: at rest f stays, and the axis rests on the friction like on a soft sp
 constant M this is Dahl's s * M with ds/dphi = (sign(dphi) - s) / phi_d.  When M changes
 with the velocity (a Stribeck rise, a viscous drag), f follows it over the travel, not at
 once: an element deflected in pre-sliding has not slid, and its friction is a function of
-its deflection (docs/servo_test.md, "Pre-sliding").  ``presliding_damping_ratio`` > 0 adds
+its deflection (docs/servo_test.md, "The plant").  ``presliding_damping_ratio`` > 0 adds
 LuGre's micro-damping sigma_1 dz/dt (z the deflection; 0 in steady sliding), sigma_1 set by
 its damping ratio of the mode of the element's stiffness M / phi_d and the inertia.
 """
