@@ -188,20 +188,25 @@ class TruthMode(Mode):
         super().__init__(name)
         self.law = law
         self.phi_d = presliding_rad
-        self.s = 0.0
+        self.f = 0.0                # the Dahl element's friction [N m]
+        self.level = 0.0            # the sliding torque's magnitude it relaxes to [N m]
         self.last = None
 
     def raw(self, t_s, angle_rad, velocity_rad_s, load_n):
-        """Return the law's torque while moving (times the Dahl state), 0 at rest."""
-        if self.phi_d > 0.0 and self.last is not None and angle_rad != self.last:
+        """Return the law's torque while moving (its relaxed Dahl element's), 0 at rest."""
+        moving = velocity_rad_s != 0.0
+        torque = self.law.torque(t_s, angle_rad, velocity_rad_s, load_n) if moving else 0.0
+        if self.phi_d <= 0.0:
+            return torque
+        if moving:
+            self.level = abs(torque)
+        if self.last is not None and angle_rad != self.last:
+            # the plant's element: relaxed over the travel to the sliding torque's magnitude
             d = angle_rad - self.last
-            target = math.copysign(1.0, d)
-            self.s = target - (target - self.s) * math.exp(-abs(d) / self.phi_d)
+            target = math.copysign(self.level, d)
+            self.f = target - (target - self.f) * math.exp(-abs(d) / self.phi_d)
         self.last = angle_rad
-        if velocity_rad_s == 0.0:
-            return 0.0
-        torque = self.law.torque(t_s, angle_rad, velocity_rad_s, load_n)
-        return self.s * abs(torque) if self.phi_d > 0.0 else torque
+        return self.f if moving else 0.0
 
 
 def model_runner(path, settings):

@@ -27,11 +27,17 @@ while B- <= u <= B+ (the two breakaway torques): the friction then equals u, hol
 applied torque up to the breakaway value; beyond it the axis slides, friction opposing the
 motion.  There is no velocity threshold to tune and no sign flipping at rest.
 
-Pre-sliding (``presliding_rad`` > 0, a Dahl element): the friction is s * M, M the model's
-torque magnitude in the current (or last) direction, s in [-1, 1] following the nut travel
-as ds/dphi = (sign(dphi) - s) / phi_d: after a reversal the friction builds up over a few
-phi_d of travel instead of flipping.  No switch is needed then: at rest s stays, and the
-axis rests on the friction like on a soft spring.
+Pre-sliding (``presliding_rad`` > 0, a Dahl element): the friction is a state f that relaxes
+along the nut travel toward the model's sliding torque T (signed, in the direction of travel,
+magnitude M): df/dphi = (M sign(dphi) - f) / phi_d, solved exactly over each sub-step.  After
+a reversal the friction builds up over a few phi_d of travel instead of flipping; no switch
+is needed: at rest f stays, and the axis rests on the friction like on a soft spring.  For a
+constant M this is Dahl's s * M with ds/dphi = (sign(dphi) - s) / phi_d.  When M changes
+with the velocity (a Stribeck rise, a viscous drag), f follows it over the travel, not at
+once: an element deflected in pre-sliding has not slid, and its friction is a function of
+its deflection (docs/servo_test.md, "The plant").  ``presliding_damping_ratio`` > 0 adds
+LuGre's micro-damping sigma_1 dz/dt (z the deflection; 0 in steady sliding), sigma_1 set by
+its damping ratio of the mode of the element's stiffness M / phi_d and the inertia.
 """
 
 import dataclasses
@@ -201,10 +207,11 @@ class Plant:
         self.n_sub = settings.substeps
         self.every_substep = settings.friction_update == "substep"
         self.phi_d = settings.presliding_rad if presliding_rad is None else presliding_rad
+        self.zeta = settings.presliding_damping_ratio
         self.angle = float(angle0_rad)
         self.velocity = 0.0
-        self.s = 0.0                # Dahl state (pre-sliding plants)
-        self.magnitude = 0.0        # Dahl: the last moving friction magnitude [N m]
+        self.level = 0.0            # Dahl: the sliding friction it relaxes to [N m], signed
+        self.f = 0.0                # Dahl: the element's friction [N m]
         self._probe = None          # (angle, load, B-, B+) of the rest in progress
         self.stick_substeps = 0
         self.breakaways = 0
@@ -268,26 +275,41 @@ class Plant:
                 left = 0.0
         return 0.0 if first is None else first
 
+    @property
+    def s(self):
+        """Return the Dahl state: the element's friction over its sliding level (0 unknown)."""
+        return self.f / abs(self.level) if self.level != 0.0 else 0.0
+
     def _advance_dahl(self, t_s, period_s, u_nm, load_n):
-        """Pre-sliding plant: semi-implicit sub-steps, s updated exactly along each."""
+        """Pre-sliding plant: semi-implicit sub-steps, the element relaxed exactly along each."""
         h = period_s / self.n_sub
         first = None
         for i in range(self.n_sub):
             t = t_s + i * h
             if self.velocity != 0.0 and (i == 0 or self.every_substep):
-                self.magnitude = abs(self.law.torque(t, self.angle, self.velocity, load_n))
-            elif self.magnitude == 0.0:
+                self.level = self.law.torque(t, self.angle, self.velocity, load_n)
+            elif self.level == 0.0:
                 d = 1.0 if u_nm >= 0.0 else -1.0
-                self.magnitude = abs(self.law.breakaway(t, self.angle, load_n, d))
-            f = self.s * self.magnitude
+                self.level = self.law.breakaway(t, self.angle, load_n, d)
+            f = self.f
+            w = self.velocity
+            magnitude = abs(self.level)
+            c = 0.0
+            if self.zeta > 0.0 and magnitude > 0.0:
+                # sigma_1 dz/dt, z the element's deflection: dz/dt = w (1 - f / (+-M)) with M
+                # the level in the direction of w, 0 in steady sliding; never negative
+                sigma1 = 2.0 * self.zeta * math.sqrt(self.j * magnitude / self.phi_d)
+                direction = math.copysign(1.0, w if w != 0.0 else u_nm - f)
+                c = sigma1 * max(0.0, 1.0 - direction * f / magnitude)
             if first is None:
-                first = f
-            self.velocity += h * (u_nm - f) / self.j
+                first = f + c * w
+            # implicit in the damping: stable at any sigma_1 h / J
+            self.velocity = (w + h * (u_nm - f) / self.j) / (1.0 + h * c / self.j)
             d_phi = self.velocity * h
             self.angle += d_phi
             if d_phi != 0.0:
-                target = math.copysign(1.0, d_phi)
-                self.s = target - (target - self.s) * math.exp(-abs(d_phi) / self.phi_d)
+                target = math.copysign(magnitude, d_phi)
+                self.f = target - (target - self.f) * math.exp(-abs(d_phi) / self.phi_d)
         return first
 
 

@@ -104,6 +104,10 @@ class PlantSettings:
                                   "builds up over this nut rotation after a reversal (0: the "
                                   "plant model file's pre_rolling travel, else a stick-slip "
                                   "switch)", lo=0.0, hi=1.0)
+    presliding_damping_ratio: float = field(
+        0.0, "1", "micro-damping of the pre-sliding element (LuGre's sigma_1 on dz/dt), as "
+        "the damping ratio of the mode its stiffness forms with the plant's inertia",
+        lo=0.0, hi=10.0)
     axial_load_n: float = field(0.0, "N", "axial load when the recording has none "
                                 "(axial_load_n column)", lo=-1e6, hi=1e6)
 

@@ -69,11 +69,71 @@ def test_presliding_builds_the_friction_over_its_travel_after_a_reversal():
     """Dahl element: s = 1 - 2 exp(-travel / phi_d) after a reversal from s = -1."""
     phi_d = 1e-3
     p = plant(presliding_rad=phi_d, substeps=50)
-    p.s, p.magnitude = -1.0, TC
+    p.f, p.level = -TC, TC
     p.velocity = 1.0
     p.advance(0.0, 1e-3, TC, 0.0)       # about 1 mrad of travel
     travel = p.angle - 1.0
     assert p.s == pytest.approx(1.0 - 2.0 * math.exp(-travel / phi_d), abs=1e-9)
+
+
+class StribeckLaw:
+    """A friction law whose level rises toward standstill: T_c + T_s exp(-(w / w_s)^2)."""
+
+    errors = 0
+
+    def torque(self, t_s, angle_rad, velocity_rad_s, load_n):
+        return math.copysign(TC + 0.1 * math.exp(-(velocity_rad_s / 1.0) ** 2),
+                             velocity_rad_s)
+
+    def breakaway(self, t_s, angle_rad, load_n, direction):
+        return direction * (TC + 0.1)
+
+
+def ringing(p, periods=400):
+    """Release a plant deflected on its pre-sliding spring, u = 0; return |angle - end| peaks."""
+    angles = []
+    for k in range(periods):
+        p.advance(k * 1e-3, 1e-3, 0.0, 0.0)
+        angles.append(p.angle)
+    a = np.array(angles) - angles[-1]
+    return np.abs(a[:50]).max(), np.abs(a[-50:]).max()
+
+
+def test_a_level_that_changes_with_velocity_moves_a_deflected_element_only_over_travel():
+    """A Stribeck rise does not lift the friction of a deflected element at once."""
+    phi_d = 1e-3
+    p = plant(StribeckLaw(), presliding_rad=phi_d, substeps=8)
+    p.f, p.level, p.velocity = 0.1, TC, 1e-6     # half-deflected, creeping
+    p.advance(0.0, 1e-3, 0.1, 0.0)
+    # level 0.3 N m at 1e-6 rad/s: f moves by (0.3 - 0.1) * travel / phi_d, ~1e-6 N m,
+    # where s * M(w) (the state times the level) would jump to 0.15 N m
+    assert p.f == pytest.approx(0.1, abs=1e-5)
+    assert p.level == pytest.approx(TC + 0.1, rel=1e-9)
+
+
+def test_presliding_damping_ratio_damps_the_ringing_at_rest():
+    """sigma_1 at damping ratio 0.5: the ringing dies within a few periods of its mode."""
+    undamped = plant(presliding_rad=1e-3, substeps=16)
+    damped = plant(presliding_rad=1e-3, substeps=16, presliding_damping_ratio=0.5)
+    for p in (undamped, damped):
+        p.f, p.level = 0.15, TC
+    f_undamped = ringing(undamped, 60)
+    f_damped = ringing(damped, 60)
+    # the mode: sqrt(M / (phi_d J)) = 1000 rad/s, 60 ms are ~10 periods; zeta 0.5 leaves
+    # exp(-0.5 * 1000 * 0.01) < 1 % after 10 ms
+    assert f_damped[1] < 0.01 * f_damped[0]
+    assert f_undamped[1] > 10.0 * f_damped[1]
+
+
+def test_presliding_damping_ratio_is_zero_by_default_and_validated():
+    """The default leaves the Dahl element as it is; a negative ratio is refused by name."""
+    from bb_friction_ros.config import ConfigError
+    from bb_friction_ros.servo.settings import settings_from_mapping
+    assert PlantSettings().presliding_damping_ratio == 0.0
+    loop = {"rate_hz": 1000.0, "position_gain_per_s": 40.0, "velocity_gain_nm_s_per_rad": 0.1,
+            "torque_limit_nm": 1.0}
+    with pytest.raises(ConfigError, match="presliding_damping_ratio"):
+        settings_from_mapping({"loop": loop, "plant": {"presliding_damping_ratio": -0.1}})
 
 
 def test_holding_the_model_per_servo_sample_converges_to_the_substep_run(axis_model,
