@@ -675,8 +675,7 @@ def run_discrepancy(input_path, out, config=None, settings=None, replay_settings
 
 
 def _physical_ignored(settings, rec, config):
-    """Return why the physical candidates cannot apply to this run, or None (they apply, or
-    are off)."""
+    """Return why the physical candidates cannot apply to this run, or None."""
     if not settings.physical.enabled:
         return None
     if rec.info.get("baseline") == "zero":
