@@ -182,3 +182,71 @@ def test_kernel_modules_call_compiled_functions_of_their_own_file_and_compiled_p
             if line.startswith(("from bb_friction_ros", "import bb_friction_ros")):
                 assert "kernel" not in line or path.name == "kernel.py" and "compiled" in line, \
                     f"{path.relative_to(root)}: {line}"
+
+
+if compiled.HAVE_NUMBA:
+    @compiled.jit
+    def _borrowed_sum_and_double(a, b):
+        v = compiled.borrowed(a)
+        w = compiled.borrowed(b)
+        s = 0.0
+        for i in range(v.shape[0]):
+            s += v[i]
+            v[i] *= 2.0
+        corner = w[1:, ::2]          # a view of the borrowed view
+        corner[0, 0] = s
+        return s, corner.shape[0] * corner.shape[1]
+
+    @compiled.jit
+    def _borrowed_through_a_call(a):
+        v = compiled.borrowed(a)
+        out = np.empty(2)
+        out[0], out[1] = _borrowed_sum_and_double(v[:3], v.reshape((2, 2)))
+        return out
+
+
+@pytest.mark.skipif(not compiled.HAVE_NUMBA, reason="numba not installed")
+def test_a_borrowed_view_reads_and_writes_the_array_it_borrows():
+    """Same values, shape and strides; writes land in the caller's array, views of it too."""
+    a = np.arange(1.0, 6.0)
+    b = np.zeros((3, 4))
+    s, size = _borrowed_sum_and_double(a, b)
+    assert s == 15.0 and size == 4
+    np.testing.assert_array_equal(a, [2.0, 4.0, 6.0, 8.0, 10.0])
+    expected = np.zeros((3, 4))
+    expected[1, 0] = 15.0
+    np.testing.assert_array_equal(b, expected)
+    a = np.arange(4.0)
+    out = _borrowed_through_a_call(a)
+    np.testing.assert_array_equal(out, [3.0, 1.0])
+    np.testing.assert_array_equal(a, [0.0, 2.0, 3.0, 3.0])
+
+
+@pytest.mark.skipif(not compiled.HAVE_NUMBA, reason="numba not installed")
+def test_borrowed_views_neither_leak_nor_free_what_they_borrow():
+    """
+    Repeated calls leave numba's allocation count where it was and the arrays alive.
+
+    A view that owned a reference it never gave back would leak the array, one that gave
+    back a reference it never took would free it under the caller.
+    """
+    from numba.core.runtime import _nrt_python as nrt, rtsys
+    a = np.arange(4.0)
+    b = np.zeros((3, 4))
+    _borrowed_through_a_call(a)
+    _borrowed_sum_and_double(a, b)
+    nrt.memsys_enable_stats()
+    try:
+        before = rtsys.get_allocation_stats()
+        refs = sys.getrefcount(a), sys.getrefcount(b)
+        for _ in range(1000):
+            _borrowed_through_a_call(a)
+            _borrowed_sum_and_double(a, b)
+        after = rtsys.get_allocation_stats()
+    finally:
+        nrt.memsys_disable_stats()
+    # What the calls allocate (the result, the meminfos of the arguments) is all freed.
+    assert after.alloc - before.alloc == after.free - before.free >= 1000
+    assert after.mi_alloc - before.mi_alloc == after.mi_free - before.mi_free >= 1000
+    assert (sys.getrefcount(a), sys.getrefcount(b)) == refs
+    assert a[0] == 0.0 and b[1, 0] > 0.0     # still the callers' arrays
