@@ -837,49 +837,67 @@ FB_ROWS = 54
 def _lanes_gauss6(fw, m):
     """Solve the lanes' 6 x 6 systems with two right-hand sides in place (rows 8 r + 6, 7)."""
     fw = borrowed(fw)
+    # Whole rows (views of _CHUNK lanes), each loop over the lanes reading and writing
+    # rows, never fw's two indices (a row's start is then computed once per loop).
+    big = fw[_FB_BIG]
+    piv = fw[_FB_PIV]
+    bad = fw[_FB_BAD]
+    inv = fw[_FB_INV]
+    fac = fw[_FB_FAC]
+    acc = fw[_FB_SUM]
     for col in range(6):
         rc = 8 * col
+        pc = fw[rc + col]
         for i in range(m):
-            fw[_FB_BIG, i] = abs(fw[rc + col, i])
-            fw[_FB_PIV, i] = col
+            big[i] = abs(pc[i])
+            piv[i] = col
         for r in range(col + 1, 6):
+            rr = fw[8 * r + col]
             for i in range(m):
-                v = abs(fw[8 * r + col, i])
-                take = v > fw[_FB_BIG, i]
-                fw[_FB_BIG, i] = v if take else fw[_FB_BIG, i]
-                fw[_FB_PIV, i] = r if take else fw[_FB_PIV, i]
+                v = abs(rr[i])
+                take = v > big[i]
+                big[i] = v if take else big[i]
+                piv[i] = r if take else piv[i]
         for i in range(m):
-            big = fw[_FB_BIG, i]
-            bad = big == 0.0 or not (big < np.inf)
-            fw[_FB_BAD, i] = 1.0 if bad else fw[_FB_BAD, i]
+            b = big[i]
+            bad[i] = 1.0 if (b == 0.0 or not (b < np.inf)) else bad[i]
         for r in range(col + 1, 6):
             for j in range(col, 8):
+                ra = fw[rc + j]
+                rb = fw[8 * r + j]
                 for i in range(m):
-                    swap = fw[_FB_PIV, i] == r
-                    a = fw[rc + j, i]
-                    b = fw[8 * r + j, i]
-                    fw[rc + j, i] = b if swap else a
-                    fw[8 * r + j, i] = a if swap else b
+                    swap = piv[i] == r
+                    a = ra[i]
+                    b = rb[i]
+                    ra[i] = b if swap else a
+                    rb[i] = a if swap else b
         for i in range(m):
-            fw[_FB_INV, i] = 1.0 / fw[rc + col, i]
+            inv[i] = 1.0 / pc[i]
         for r in range(col + 1, 6):
+            rr = fw[8 * r + col]
             for i in range(m):
-                fw[_FB_FAC, i] = fw[8 * r + col, i] * fw[_FB_INV, i]
+                fac[i] = rr[i] * inv[i]
             for j in range(col + 1, 8):
+                ra = fw[rc + j]
+                rb = fw[8 * r + j]
                 for i in range(m):
-                    fw[8 * r + j, i] -= fw[_FB_FAC, i] * fw[rc + j, i]
+                    rb[i] -= fac[i] * ra[i]
     for col in range(5, -1, -1):
         rc = 8 * col
+        pc = fw[rc + col]
         for i in range(m):
-            fw[_FB_INV, i] = 1.0 / fw[rc + col, i]
+            inv[i] = 1.0 / pc[i]
         for jr in range(6, 8):
+            rj = fw[rc + jr]
             for i in range(m):
-                fw[_FB_SUM, i] = fw[rc + jr, i]
+                acc[i] = rj[i]
             for k in range(col + 1, 6):
+                ra = fw[rc + k]
+                rb = fw[8 * k + jr]
                 for i in range(m):
-                    fw[_FB_SUM, i] -= fw[rc + k, i] * fw[8 * k + jr, i]
+                    acc[i] -= ra[i] * rb[i]
             for i in range(m):
-                fw[rc + jr, i] = fw[_FB_SUM, i] * fw[_FB_INV, i]
+                rj[i] = acc[i] * inv[i]
 
 
 @_jit
