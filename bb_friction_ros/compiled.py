@@ -198,14 +198,60 @@ _LM_SHIFT = math.sqrt(2.220446049250313e-16)
 
 
 @jit
+def gauss_eliminate(d, w, n, j0):
+    """
+    Solve d[:n, :n] @ X = w[:n, j0:] in place (w <- X) by Gaussian elimination, no retry.
+
+    Partial pivoting; d is overwritten.  Returns False, with d and w part way through, if a
+    pivot is zero or not finite (``gauss_solve`` then retries from its copies).
+    """
+    m = w.shape[1]
+    for col in range(n):
+        piv = col
+        big = abs(d[col, col])
+        for r in range(col + 1, n):
+            if abs(d[r, col]) > big:
+                big = abs(d[r, col])
+                piv = r
+        if big == 0.0 or not math.isfinite(big):
+            return False
+        if piv != col:
+            for j in range(n):
+                tmp = d[col, j]
+                d[col, j] = d[piv, j]
+                d[piv, j] = tmp
+            for j in range(j0, m):
+                tmp = w[col, j]
+                w[col, j] = w[piv, j]
+                w[piv, j] = tmp
+        inv = 1.0 / d[col, col]
+        for r in range(col + 1, n):
+            fac = d[r, col] * inv
+            if fac != 0.0:
+                for j in range(col + 1, n):
+                    d[r, j] -= fac * d[col, j]
+                for j in range(j0, m):
+                    w[r, j] -= fac * w[col, j]
+    for col in range(n - 1, -1, -1):
+        inv = 1.0 / d[col, col]
+        for j in range(j0, m):
+            acc = w[col, j]
+            for k in range(col + 1, n):
+                acc -= d[col, k] * w[k, j]
+            w[col, j] = acc * inv
+    return True
+
+
+@jit
 def gauss_solve(d, w, n, j0, d0, w0):
     """
     Solve d[:n, :n] @ X = w[:n, j0:] in place (w <- X) by Gaussian elimination.
 
-    Partial pivoting.  A singular (or non-finite) matrix is solved once more with a
-    Levenberg-Marquardt diagonal shift sqrt(eps) max|d| (the numpy paths' shift).  d is
-    overwritten; d0 (>= n x n) and w0 (>= n x w.shape[1]) are work arrays for the copies the
-    retry needs.  Returns False if the shifted matrix is singular too (w is then undefined).
+    Partial pivoting (``gauss_eliminate``).  A singular (or non-finite) matrix is solved once
+    more with a Levenberg-Marquardt diagonal shift sqrt(eps) max|d| (the numpy paths' shift).
+    d is overwritten; d0 (>= n x n) and w0 (>= n x w.shape[1]) are work arrays for the copies
+    the retry needs.  Returns False if the shifted matrix is singular too (w is then
+    undefined).
     """
     m = w.shape[1]
     for r in range(n):
@@ -213,56 +259,20 @@ def gauss_solve(d, w, n, j0, d0, w0):
             d0[r, j] = d[r, j]
         for j in range(j0, m):
             w0[r, j] = w[r, j]
-    for attempt in range(2):
-        singular = False
-        for col in range(n):
-            piv = col
-            big = abs(d[col, col])
-            for r in range(col + 1, n):
-                if abs(d[r, col]) > big:
-                    big = abs(d[r, col])
-                    piv = r
-            if big == 0.0 or not math.isfinite(big):
-                singular = True
-                break
-            if piv != col:
-                for j in range(n):
-                    tmp = d[col, j]
-                    d[col, j] = d[piv, j]
-                    d[piv, j] = tmp
-                for j in range(j0, m):
-                    tmp = w[col, j]
-                    w[col, j] = w[piv, j]
-                    w[piv, j] = tmp
-            inv = 1.0 / d[col, col]
-            for r in range(col + 1, n):
-                fac = d[r, col] * inv
-                if fac != 0.0:
-                    for j in range(col + 1, n):
-                        d[r, j] -= fac * d[col, j]
-                    for j in range(j0, m):
-                        w[r, j] -= fac * w[col, j]
-        if not singular:
-            for col in range(n - 1, -1, -1):
-                inv = 1.0 / d[col, col]
-                for j in range(j0, m):
-                    acc = w[col, j]
-                    for k in range(col + 1, n):
-                        acc -= d[col, k] * w[k, j]
-                    w[col, j] = acc * inv
-            return True
-        big = 1e-300
-        for r in range(n):
-            for j in range(n):
-                big = max(big, abs(d0[r, j]))
-        shift = _LM_SHIFT * big
-        for r in range(n):
-            for j in range(n):
-                d[r, j] = d0[r, j]
-            d[r, r] += shift
-            for j in range(j0, m):
-                w[r, j] = w0[r, j]
-    return False
+    if gauss_eliminate(d, w, n, j0):
+        return True
+    big = 1e-300
+    for r in range(n):
+        for j in range(n):
+            big = max(big, abs(d0[r, j]))
+    shift = _LM_SHIFT * big
+    for r in range(n):
+        for j in range(n):
+            d[r, j] = d0[r, j]
+        d[r, r] += shift
+        for j in range(j0, m):
+            w[r, j] = w0[r, j]
+    return gauss_eliminate(d, w, n, j0)
 
 
 @jit

@@ -59,6 +59,17 @@ def test_gauss_solve_reports_a_matrix_it_cannot_solve():
                                     np.empty((2, 1)))
 
 
+def test_gauss_eliminate_solves_and_leaves_a_singular_matrix_to_the_caller():
+    """The elimination alone: numpy's solution, or False (no shift) for a singular matrix."""
+    d = RNG.normal(size=(7, 7))
+    w = RNG.normal(size=(7, 9))
+    ref = np.linalg.solve(d, w)
+    assert compiled.gauss_eliminate(d.copy(), w, 7, 0)
+    np.testing.assert_allclose(w, ref, rtol=1e-12, atol=1e-12)
+    singular = np.array([[1.0, 2.0], [2.0, 4.0]])
+    assert not compiled.gauss_eliminate(singular, np.ones((2, 1)), 2, 0)
+
+
 @pytest.mark.parametrize("nb, blocks", [(7, 5), (9, 4), (2, 1)])
 def test_back_substitution_solves_the_block_tridiagonal_system(nb, blocks):
     """
