@@ -178,6 +178,45 @@ try:
             return view._getvalue()
 
         return arr(arr), codegen
+
+    @_intrinsic
+    def carved(typingctx, base, off, shape):
+        """
+        Return base[off:off + prod(shape)] as a C-contiguous array of ``shape`` (a view).
+
+        ``base[a:b].reshape(shape)`` without numba's reshape, which calls out to a C
+        helper for every view (measured: with the views' own bookkeeping about 3 % of a
+        warm step, ~100 views per step).  base: a 1-D C-contiguous array.
+        """
+        if not (isinstance(base, _types.Array) and base.ndim == 1 and base.layout == "C"
+                and isinstance(off, _types.Integer) and isinstance(shape, _types.BaseTuple)
+                and all(isinstance(t, _types.Integer) for t in shape)):
+            return None
+        rettype = base.copy(ndim=len(shape), layout="C")
+
+        def codegen(context, builder, sig, args):
+            from numba.core.imputils import impl_ret_borrowed
+            from numba.np.arrayobj import populate_array
+            src = context.make_array(base)(context, builder, value=args[0])
+            intp = context.get_value_type(_types.intp)
+            dims = [context.cast(builder, v, t, _types.intp)
+                    for v, t in zip(_cgutils.unpack_tuple(builder, args[2]), shape)]
+            itemsize = context.get_constant(_types.intp, context.get_abi_sizeof(
+                context.get_data_type(base.dtype)))
+            strides = [None] * len(dims)
+            acc = itemsize
+            for k in range(len(dims) - 1, -1, -1):
+                strides[k] = acc
+                acc = builder.mul(acc, dims[k])
+            start = context.cast(builder, args[1], off, _types.intp)
+            out = context.make_array(rettype)(context, builder)
+            populate_array(out, data=builder.gep(src.data, [start]),
+                           shape=_cgutils.pack_array(builder, dims, ty=intp),
+                           strides=_cgutils.pack_array(builder, strides, ty=intp),
+                           itemsize=itemsize, meminfo=src.meminfo, parent=None)
+            return impl_ret_borrowed(context, builder, rettype, out._getvalue())
+
+        return rettype(base, off, shape), codegen
 except ImportError:        # pragma: no cover - numba is an exec_depend
     HAVE_NUMBA = False
     DEPENDENCY_KEYED_CACHE = False
@@ -191,6 +230,13 @@ except ImportError:        # pragma: no cover - numba is an exec_depend
     def borrowed(arr):
         """Without numba: the array itself."""
         return arr
+
+    def carved(base, off, shape):
+        """Without numba: base[off:off + prod(shape)].reshape(shape)."""
+        size = 1
+        for d in shape:
+            size *= d
+        return base[off:off + size].reshape(shape)
 
 # Levenberg-Marquardt shift of a singular matrix, relative to its largest entry: sqrt(eps)
 # of float64 (the numpy paths use the same shift).

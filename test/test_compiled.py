@@ -261,3 +261,32 @@ def test_borrowed_views_neither_leak_nor_free_what_they_borrow():
     assert after.mi_alloc - before.mi_alloc == after.mi_free - before.mi_free >= 1000
     assert (sys.getrefcount(a), sys.getrefcount(b)) == refs
     assert a[0] == 0.0 and b[1, 0] > 0.0     # still the callers' arrays
+
+
+if compiled.HAVE_NUMBA:
+    @compiled.jit
+    def _carved_views(ws, n):
+        a = compiled.carved(ws, 3, (n, 2))
+        b = compiled.carved(ws, 3 + 2 * n, (2, n, 3))
+        a[1, 1] = -1.0
+        return a.sum(), b[1, 2, 0], a.strides, b.strides
+
+    @compiled.jit
+    def _carved_of_a_local(n):
+        ws = np.arange(40.0)
+        return compiled.carved(ws, 3, (n, 2))      # the view keeps ws alive
+
+
+@pytest.mark.skipif(not compiled.HAVE_NUMBA, reason="numba not installed")
+def test_carved_is_the_reshaped_slice():
+    """carved(ws, off, shape) is ws[off:off + size].reshape(shape): values, strides, writes."""
+    ws = np.arange(40.0)
+    ref = ws.copy()
+    a = ref[3:11].reshape((4, 2))
+    b = ref[11:35].reshape((2, 4, 3))
+    a[1, 1] = -1.0
+    total, b120, sa, sb = _carved_views(ws, 4)
+    np.testing.assert_array_equal(ws, ref)
+    assert (total, b120, sa, sb) == (a.sum(), b[1, 2, 0], a.strides, b.strides)
+    out = _carved_of_a_local(4)
+    np.testing.assert_array_equal(out, np.arange(3.0, 11.0).reshape((4, 2)))

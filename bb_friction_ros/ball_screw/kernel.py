@@ -40,7 +40,7 @@ import numpy as np
 from bb_friction_ros.ball_screw.single_ball import LENGTH_SCALE_M
 
 from bb_friction_ros.compiled import HAVE_NUMBA  # noqa: F401  (re-exported: solver, tests)
-from bb_friction_ros.compiled import back_substitute_block, borrowed, gauss_solve
+from bb_friction_ros.compiled import back_substitute_block, borrowed, carved, gauss_solve
 from bb_friction_ros.compiled import jit as _jit
 
 _TINY = 1e-300
@@ -727,9 +727,9 @@ def b2b_terms_into(x, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, want_jac, g_r, 
     """``b2b_terms`` with its work arrays carved from bw (B2B_WORK_SIZE,): no allocation."""
     st = bw[0:3]
     un = bw[3:6]
-    pn = bw[6:15].reshape((3, 3))
-    dr = bw[15:33].reshape((3, 6))
-    df = bw[33:51].reshape((3, 6))
+    pn = carved(bw, 6, (3, 3))
+    dr = carved(bw, 15, (3, 6))
+    df = carved(bw, 33, (3, 6))
     for c in range(rear.shape[0]):
         r = rear[c]
         f = front[c]
@@ -1428,15 +1428,15 @@ def elastic_direction(order, behind, ahead, wrap, rear, jac, dax, res, tr, cp, c
     df (K,).
     """
     n = order.shape[0]
-    d = bw[0:81].reshape((9, 9))
-    w = bw[81:180].reshape((9, 11))
-    d0 = bw[180:261].reshape((9, 9))
-    w0 = bw[261:360].reshape((9, 11))
+    d = carved(bw, 0, (9, 9))
+    w = carved(bw, 81, (9, 11))
+    d0 = carved(bw, 180, (9, 9))
+    w0 = carved(bw, 261, (9, 11))
     # Of L only the entries written below for a contact behind are ever read: not cleared.
-    lm = bw[360:441].reshape((9, 9))
+    lm = carved(bw, 360, (9, 9))
     gv = bw[441:447]
-    d_own = bw[447:483].reshape((6, 6))
-    d_other = bw[483:519].reshape((6, 6))
+    d_own = carved(bw, 447, (6, 6))
+    d_other = carved(bw, 483, (6, 6))
     for k in range(n):
         b = order[k]
         for r in range(9):
@@ -1550,7 +1550,7 @@ def _carve(ws, off, shape):
     size = 1
     for d in shape:
         size *= d
-    return ws[off:off + size].reshape(shape), off + size
+    return carved(ws, off, shape), off + size
 
 
 @_jit
