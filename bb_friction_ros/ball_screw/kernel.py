@@ -862,6 +862,13 @@ def _lanes_gauss6(fw, m):
             b = big[i]
             bad[i] = 1.0 if (b == 0.0 or not (b < np.inf)) else bad[i]
         for r in range(col + 1, 6):
+            # Row r swapped in no lane (the usual case: most pivots are on the diagonal):
+            # the selects below would write every value back unchanged.
+            hits = 0.0
+            for i in range(m):
+                hits += 1.0 if piv[i] == r else 0.0
+            if hits == 0.0:
+                continue
             for j in range(col, 8):
                 ra = fw[rc + j]
                 rb = fw[8 * r + j]
