@@ -59,6 +59,17 @@ def test_gauss_solve_reports_a_matrix_it_cannot_solve():
                                     np.empty((2, 1)))
 
 
+def test_gauss_eliminate_solves_and_leaves_a_singular_matrix_to_the_caller():
+    """The elimination alone: numpy's solution, or False (no shift) for a singular matrix."""
+    d = RNG.normal(size=(7, 7))
+    w = RNG.normal(size=(7, 9))
+    ref = np.linalg.solve(d, w)
+    assert compiled.gauss_eliminate(d.copy(), w, 7, 0)
+    np.testing.assert_allclose(w, ref, rtol=1e-12, atol=1e-12)
+    singular = np.array([[1.0, 2.0], [2.0, 4.0]])
+    assert not compiled.gauss_eliminate(singular, np.ones((2, 1)), 2, 0)
+
+
 @pytest.mark.parametrize("nb, blocks", [(7, 5), (9, 4), (2, 1)])
 def test_back_substitution_solves_the_block_tridiagonal_system(nb, blocks):
     """
@@ -182,3 +193,100 @@ def test_kernel_modules_call_compiled_functions_of_their_own_file_and_compiled_p
             if line.startswith(("from bb_friction_ros", "import bb_friction_ros")):
                 assert "kernel" not in line or path.name == "kernel.py" and "compiled" in line, \
                     f"{path.relative_to(root)}: {line}"
+
+
+if compiled.HAVE_NUMBA:
+    @compiled.jit
+    def _borrowed_sum_and_double(a, b):
+        v = compiled.borrowed(a)
+        w = compiled.borrowed(b)
+        s = 0.0
+        for i in range(v.shape[0]):
+            s += v[i]
+            v[i] *= 2.0
+        corner = w[1:, ::2]          # a view of the borrowed view
+        corner[0, 0] = s
+        return s, corner.shape[0] * corner.shape[1]
+
+    @compiled.jit
+    def _borrowed_through_a_call(a):
+        v = compiled.borrowed(a)
+        out = np.empty(2)
+        out[0], out[1] = _borrowed_sum_and_double(v[:3], v.reshape((2, 2)))
+        return out
+
+
+@pytest.mark.skipif(not compiled.HAVE_NUMBA, reason="numba not installed")
+def test_a_borrowed_view_reads_and_writes_the_array_it_borrows():
+    """Same values, shape and strides; writes land in the caller's array, views of it too."""
+    a = np.arange(1.0, 6.0)
+    b = np.zeros((3, 4))
+    s, size = _borrowed_sum_and_double(a, b)
+    assert s == 15.0 and size == 4
+    np.testing.assert_array_equal(a, [2.0, 4.0, 6.0, 8.0, 10.0])
+    expected = np.zeros((3, 4))
+    expected[1, 0] = 15.0
+    np.testing.assert_array_equal(b, expected)
+    a = np.arange(4.0)
+    out = _borrowed_through_a_call(a)
+    np.testing.assert_array_equal(out, [3.0, 1.0])
+    np.testing.assert_array_equal(a, [0.0, 2.0, 3.0, 3.0])
+
+
+@pytest.mark.skipif(not compiled.HAVE_NUMBA, reason="numba not installed")
+def test_borrowed_views_neither_leak_nor_free_what_they_borrow():
+    """
+    Repeated calls leave numba's allocation count where it was and the arrays alive.
+
+    A view that owned a reference it never gave back would leak the array, one that gave
+    back a reference it never took would free it under the caller.
+    """
+    from numba.core.runtime import _nrt_python as nrt, rtsys
+    a = np.arange(4.0)
+    b = np.zeros((3, 4))
+    _borrowed_through_a_call(a)
+    _borrowed_sum_and_double(a, b)
+    nrt.memsys_enable_stats()
+    try:
+        before = rtsys.get_allocation_stats()
+        refs = sys.getrefcount(a), sys.getrefcount(b)
+        for _ in range(1000):
+            _borrowed_through_a_call(a)
+            _borrowed_sum_and_double(a, b)
+        after = rtsys.get_allocation_stats()
+    finally:
+        nrt.memsys_disable_stats()
+    # What the calls allocate (the result, the meminfos of the arguments) is all freed.
+    assert after.alloc - before.alloc == after.free - before.free >= 1000
+    assert after.mi_alloc - before.mi_alloc == after.mi_free - before.mi_free >= 1000
+    assert (sys.getrefcount(a), sys.getrefcount(b)) == refs
+    assert a[0] == 0.0 and b[1, 0] > 0.0     # still the callers' arrays
+
+
+if compiled.HAVE_NUMBA:
+    @compiled.jit
+    def _carved_views(ws, n):
+        a = compiled.carved(ws, 3, (n, 2))
+        b = compiled.carved(ws, 3 + 2 * n, (2, n, 3))
+        a[1, 1] = -1.0
+        return a.sum(), b[1, 2, 0], a.strides, b.strides
+
+    @compiled.jit
+    def _carved_of_a_local(n):
+        ws = np.arange(40.0)
+        return compiled.carved(ws, 3, (n, 2))      # the view keeps ws alive
+
+
+@pytest.mark.skipif(not compiled.HAVE_NUMBA, reason="numba not installed")
+def test_carved_is_the_reshaped_slice():
+    """carved(ws, off, shape) is ws[off:off + size].reshape(shape): values, strides, writes."""
+    ws = np.arange(40.0)
+    ref = ws.copy()
+    a = ref[3:11].reshape((4, 2))
+    b = ref[11:35].reshape((2, 4, 3))
+    a[1, 1] = -1.0
+    total, b120, sa, sb = _carved_views(ws, 4)
+    np.testing.assert_array_equal(ws, ref)
+    assert (total, b120, sa, sb) == (a.sum(), b[1, 2, 0], a.strides, b.strides)
+    out = _carved_of_a_local(4)
+    np.testing.assert_array_equal(out, np.arange(3.0, 11.0).reshape((4, 2)))

@@ -40,7 +40,7 @@ import numpy as np
 from bb_friction_ros.ball_screw.single_ball import LENGTH_SCALE_M
 
 from bb_friction_ros.compiled import HAVE_NUMBA  # noqa: F401  (re-exported: solver, tests)
-from bb_friction_ros.compiled import back_substitute_block, gauss_solve
+from bb_friction_ros.compiled import back_substitute_block, borrowed, carved, gauss_solve
 from bb_friction_ros.compiled import jit as _jit
 
 _TINY = 1e-300
@@ -712,11 +712,24 @@ def b2b_terms(x, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, want_jac, g_r, g_f, 
     dg{r,f}_{r,f}[c] (6, 6): derivative of g_rear / g_front with respect to the rear / front
     ball's six states.
     """
-    st = np.empty(3)
-    un = np.empty(3)
-    pn = np.empty((3, 3))
-    dr = np.empty((3, 6))
-    df = np.empty((3, 6))
+    b2b_terms_into(x, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, want_jac, g_r, g_f, speed,
+                   dgr_r, dgr_f, dgf_r, dgf_f, np.empty(B2B_WORK_SIZE))
+
+
+# Work of b2b_terms_into: the slip (3), its direction (3), the projector (3 x 3) and its
+# products with B_r and B_f (3 x 6 each).
+B2B_WORK_SIZE = 51
+
+
+@_jit
+def b2b_terms_into(x, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, want_jac, g_r, g_f, speed,
+                   dgr_r, dgr_f, dgf_r, dgf_f, bw):
+    """``b2b_terms`` with its work arrays carved from bw (B2B_WORK_SIZE,): no allocation."""
+    st = bw[0:3]
+    un = bw[3:6]
+    pn = carved(bw, 6, (3, 3))
+    dr = carved(bw, 15, (3, 6))
+    df = carved(bw, 33, (3, 6))
     for c in range(rear.shape[0]):
         r = rear[c]
         f = front[c]
@@ -823,49 +836,75 @@ FB_ROWS = 54
 @_jit
 def _lanes_gauss6(fw, m):
     """Solve the lanes' 6 x 6 systems with two right-hand sides in place (rows 8 r + 6, 7)."""
+    fw = borrowed(fw)
+    # Whole rows (views of _CHUNK lanes), each loop over the lanes reading and writing
+    # rows, never fw's two indices (a row's start is then computed once per loop).
+    big = fw[_FB_BIG]
+    piv = fw[_FB_PIV]
+    bad = fw[_FB_BAD]
+    inv = fw[_FB_INV]
+    fac = fw[_FB_FAC]
+    acc = fw[_FB_SUM]
     for col in range(6):
         rc = 8 * col
+        pc = fw[rc + col]
         for i in range(m):
-            fw[_FB_BIG, i] = abs(fw[rc + col, i])
-            fw[_FB_PIV, i] = col
+            big[i] = abs(pc[i])
+            piv[i] = col
         for r in range(col + 1, 6):
+            rr = fw[8 * r + col]
             for i in range(m):
-                v = abs(fw[8 * r + col, i])
-                take = v > fw[_FB_BIG, i]
-                fw[_FB_BIG, i] = v if take else fw[_FB_BIG, i]
-                fw[_FB_PIV, i] = r if take else fw[_FB_PIV, i]
+                v = abs(rr[i])
+                take = v > big[i]
+                big[i] = v if take else big[i]
+                piv[i] = r if take else piv[i]
         for i in range(m):
-            big = fw[_FB_BIG, i]
-            bad = big == 0.0 or not (big < np.inf)
-            fw[_FB_BAD, i] = 1.0 if bad else fw[_FB_BAD, i]
+            b = big[i]
+            bad[i] = 1.0 if (b == 0.0 or not (b < np.inf)) else bad[i]
         for r in range(col + 1, 6):
+            # Row r swapped in no lane (the usual case: most pivots are on the diagonal):
+            # the selects below would write every value back unchanged.
+            hits = 0.0
+            for i in range(m):
+                hits += 1.0 if piv[i] == r else 0.0
+            if hits == 0.0:
+                continue
             for j in range(col, 8):
+                ra = fw[rc + j]
+                rb = fw[8 * r + j]
                 for i in range(m):
-                    swap = fw[_FB_PIV, i] == r
-                    a = fw[rc + j, i]
-                    b = fw[8 * r + j, i]
-                    fw[rc + j, i] = b if swap else a
-                    fw[8 * r + j, i] = a if swap else b
+                    swap = piv[i] == r
+                    a = ra[i]
+                    b = rb[i]
+                    ra[i] = b if swap else a
+                    rb[i] = a if swap else b
         for i in range(m):
-            fw[_FB_INV, i] = 1.0 / fw[rc + col, i]
+            inv[i] = 1.0 / pc[i]
         for r in range(col + 1, 6):
+            rr = fw[8 * r + col]
             for i in range(m):
-                fw[_FB_FAC, i] = fw[8 * r + col, i] * fw[_FB_INV, i]
+                fac[i] = rr[i] * inv[i]
             for j in range(col + 1, 8):
+                ra = fw[rc + j]
+                rb = fw[8 * r + j]
                 for i in range(m):
-                    fw[8 * r + j, i] -= fw[_FB_FAC, i] * fw[rc + j, i]
+                    rb[i] -= fac[i] * ra[i]
     for col in range(5, -1, -1):
         rc = 8 * col
+        pc = fw[rc + col]
         for i in range(m):
-            fw[_FB_INV, i] = 1.0 / fw[rc + col, i]
+            inv[i] = 1.0 / pc[i]
         for jr in range(6, 8):
+            rj = fw[rc + jr]
             for i in range(m):
-                fw[_FB_SUM, i] = fw[rc + jr, i]
+                acc[i] = rj[i]
             for k in range(col + 1, 6):
+                ra = fw[rc + k]
+                rb = fw[8 * k + jr]
                 for i in range(m):
-                    fw[_FB_SUM, i] -= fw[rc + k, i] * fw[8 * k + jr, i]
+                    acc[i] -= ra[i] * rb[i]
             for i in range(m):
-                fw[rc + jr, i] = fw[_FB_SUM, i] * fw[_FB_INV, i]
+                rj[i] = acc[i] * inv[i]
 
 
 @_jit
@@ -1043,16 +1082,16 @@ def add_b2b_forces(x, rear, front, g_r, g_f, fhat, res, cons):
 def _residual(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid,
               scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, res, jac, dax, terms,
               per_contact, g_r, g_f, speed, dgr_r, dgr_f, dgf_r, dgf_f, cons, want_jac, u_ball,
-              ew):
+              ew, bw):
     """
     Full residual (balls + B2B + axial + equal rates) and Jacobian; returns (axial, norm).
 
-    u_ball (N,): zeros; ew (WORK_SIZE,): the evaluation's work array.
+    u_ball (N,): zeros; ew (WORK_SIZE,), bw (B2B_WORK_SIZE,): the evaluation's work arrays.
     """
     ax = evaluate_lanes(x, u, u_ball, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
                         coef_n, grid, scale, want_jac, res, jac, dax, terms, per_contact, ew)
-    b2b_terms(x, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, want_jac, g_r, g_f, speed, dgr_r,
-              dgr_f, dgf_r, dgf_f)
+    b2b_terms_into(x, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, want_jac, g_r, g_f, speed,
+                   dgr_r, dgr_f, dgf_r, dgf_f, bw)
     add_b2b_forces(x, rear, front, g_r, g_f, fhat, res, cons)
     axial = (ax + axial_load_n) / scale
     norm = abs(axial)
@@ -1299,6 +1338,11 @@ def advance(azimuth, ratio, d_psi, separation, loop_length, track_start, gap_tol
 # border unknown.  The cost per iteration stays linear in N.
 
 
+# elastic_direction's block work: d, w, d0, w0, L (9 x 9 or 9 x 11), the role's terms (6)
+# and its two 6 x 6 derivatives.
+ELASTIC_WORK_SIZE = 3 * 81 + 2 * 99 + 6 + 72
+
+
 @_jit
 def _elastic_blocks(order, pos, rear, front, n):
     """Active pair behind / ahead of each axial position, and the return-tube pair (or -1)."""
@@ -1324,12 +1368,12 @@ def _elastic_blocks(order, pos, rear, front, n):
 def _elastic_residual(x, v, cum, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
                       coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f,
                       order, comp_a, comp_b, res, jac, dax, terms, per_contact, g_r, g_f,
-                      speed, dgr_r, dgr_f, dgf_r, dgf_f, cons, tr, cp, want_jac, ew):
+                      speed, dgr_r, dgr_f, dgf_r, dgf_f, cons, tr, cp, want_jac, ew, bw):
     """Residuals of the elastic system (see above) and the Jacobian pieces; returns the norm."""
     evaluate_lanes(x, 0.0, v, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid,
                    scale, want_jac, res, jac, dax, terms, per_contact, ew)
-    b2b_terms(x, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, want_jac, g_r, g_f, speed, dgr_r,
-              dgr_f, dgf_r, dgf_f)
+    b2b_terms_into(x, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, want_jac, g_r, g_f, speed,
+                   dgr_r, dgr_f, dgf_r, dgf_f, bw)
     add_b2b_forces(x, rear, front, g_r, g_f, fhat, res, cons)
     n = x.shape[0]
     inv_s = 1.0 / scale
@@ -1376,7 +1420,8 @@ def _role(c, b, rear, g_r, g_f, dgr_r, dgr_f, dgf_r, dgf_f, gv, d_own, d_other):
 
 @_jit
 def elastic_direction(order, behind, ahead, wrap, rear, jac, dax, res, tr, cp, cons, fhat,
-                      comp_b, g_r, g_f, dgr_r, dgr_f, dgf_r, dgf_f, xs, ys, dx, dv, dcum, df):
+                      comp_b, g_r, g_f, dgr_r, dgr_f, dgf_r, dgf_f, xs, ys, dx, dv, dcum, df,
+                      bw):
     """
     Newton step of the elastic system.
 
@@ -1385,24 +1430,25 @@ def elastic_direction(order, behind, ahead, wrap, rear, jac, dax, res, tr, cp, c
     direction with respect to the other ball are left out of the Jacobian (its residual
     stays exact; only that contact converges linearly).  Returns the border force step.
 
-    xs (N, 9, 11) and ys (N, 9, 2): work arrays.  Writes dx (N, 6), dv (N,), dcum (N,),
+    xs (N, 9, 11) and ys (N, 9, 2): work arrays, and bw (ELASTIC_WORK_SIZE,) for the
+    blocks (``newton``'s, not allocated per call).  Writes dx (N, 6), dv (N,), dcum (N,),
     df (K,).
     """
     n = order.shape[0]
-    d = np.empty((9, 9))
-    w = np.empty((9, 11))
-    d0 = np.empty((9, 9))
-    w0 = np.empty((9, 11))
-    lm = np.zeros((9, 9))
-    gv = np.empty(6)
-    d_own = np.empty((6, 6))
-    d_other = np.empty((6, 6))
+    d = carved(bw, 0, (9, 9))
+    w = carved(bw, 81, (9, 11))
+    d0 = carved(bw, 180, (9, 9))
+    w0 = carved(bw, 261, (9, 11))
+    # Of L only the entries written below for a contact behind are ever read: not cleared.
+    lm = carved(bw, 360, (9, 9))
+    gv = bw[441:447]
+    d_own = carved(bw, 447, (6, 6))
+    d_other = carved(bw, 483, (6, 6))
     for k in range(n):
         b = order[k]
         for r in range(9):
             for j in range(9):
                 d[r, j] = 0.0
-                lm[r, j] = 0.0
             for j in range(11):
                 w[r, j] = 0.0
         for r in range(6):
@@ -1412,8 +1458,6 @@ def elastic_direction(order, behind, ahead, wrap, rear, jac, dax, res, tr, cp, c
         for j in range(7):
             d[6, j] = dax[b, j]
         d[6, 7] = 1.0
-        if k > 0:
-            lm[6, 7] = -1.0
         w[6, 9] = tr[k]
         if k < n - 1:
             d[7, 6] = -1.0
@@ -1478,7 +1522,9 @@ def elastic_direction(order, behind, ahead, wrap, rear, jac, dax, res, tr, cp, c
                         d[8, j] -= acc
                     else:
                         w[8, j] -= acc
-        gauss_solve(d, w, 9, 0, d0, w0)
+        # Nothing ahead: the columns of the next ball's states and force (0..5, 8) are zero,
+        # and so is their solution; solved from column 6 (the same arithmetic elsewhere).
+        gauss_solve(d, w, 9, 0 if ahead[k] >= 0 else 6, d0, w0)
         for r in range(9):
             for j in range(11):
                 xs[k, r, j] = w[r, j]
@@ -1511,7 +1557,7 @@ def _carve(ws, off, shape):
     size = 1
     for d in shape:
         size *= d
-    return ws[off:off + size].reshape(shape), off + size
+    return carved(ws, off, shape), off + size
 
 
 @_jit
@@ -1547,7 +1593,8 @@ def _eval_arrays(ws, off, n, kc):
 def newton_work_size(n):
     """Floats and integers of ``newton``'s work arrays for n balls (``work_arrays``)."""
     per_eval = 80 * n + 158 * n
-    return 2 * per_eval + 141 * n + 3 * n + WORK_SIZE + 441 + FB_ROWS * _CHUNK, 7 * n + 1
+    return (2 * per_eval + 141 * n + 3 * n + WORK_SIZE + B2B_WORK_SIZE + ELASTIC_WORK_SIZE
+            + 441 + FB_ROWS * _CHUNK, 7 * n + 1)
 
 
 def work_arrays(n):
@@ -1572,27 +1619,24 @@ def solve_active_elastic(x, v, fhat, centres, sign, cst, k_load, k_axis, on_nut,
 
 
 @_jit
-def _evaluate(elastic, x, u, cum, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
-              coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f,
-              order, comp_a, comp_b, w, want_jac, ew):
-    """Residual norm (and the rigid axial residual) of ``newton``'s system into work ``w``."""
-    if elastic:
-        norm = _elastic_residual(x, u, cum, fhat, centres, sign, cst, k_load, k_axis, on_nut,
-                                 coef_s, coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f,
-                                 c_r, c_f, k_r, k_f, order, comp_a, comp_b, w[0], w[1], w[2],
-                                 w[3], w[4], w[5], w[6], w[7], w[8], w[9], w[10], w[11], w[12],
-                                 w[13], w[14], want_jac, ew)
-        return 0.0, norm
-    return _residual(x, u[0], fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
-                     grid, scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, w[0],
-                     w[1], w[2], w[3], w[4], w[5], w[6], w[7], w[8], w[9], w[10], w[11], w[12],
-                     want_jac, w[15], ew)
-
-
-@_jit
 def newton(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid,
            scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b,
            tol, max_it, max_rate, disp_limit, ws, wi):
+    """``_newton`` with work arrays of at least ``newton_work_size`` (allocated if smaller)."""
+    nf, ni = newton_work_size(x.shape[0])
+    if ws.shape[0] < nf or wi.shape[0] < ni:
+        ws = np.empty(nf)
+        wi = np.empty(ni, dtype=np.int64)
+    # Passed on as arguments, so that _newton may borrow them (compiled.borrowed).
+    return _newton(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
+                   grid, scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, order,
+                   comp_a, comp_b, tol, max_it, max_rate, disp_limit, ws, wi)
+
+
+@_jit
+def _newton(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid,
+            scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a,
+            comp_b, tol, max_it, max_rate, disp_limit, ws, wi):
     """
     Newton with trust region and halving line search for one active set, either load path.
 
@@ -1605,13 +1649,33 @@ def newton(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_
     ``EquilibriumSolver.solve_active`` (numpy path) with the exact Jacobian.  Returns (x, u,
     fhat, ok, iterations, norm, terms, per_contact, speed).
     """
+    x = borrowed(x)
+    u = borrowed(u)
+    fhat = borrowed(fhat)
+    centres = borrowed(centres)
+    cst = borrowed(cst)
+    k_load = borrowed(k_load)
+    k_axis = borrowed(k_axis)
+    on_nut = borrowed(on_nut)
+    coef_s = borrowed(coef_s)
+    coef_n = borrowed(coef_n)
+    grid = borrowed(grid)
+    rear = borrowed(rear)
+    front = borrowed(front)
+    b_r = borrowed(b_r)
+    b_f = borrowed(b_f)
+    c_r = borrowed(c_r)
+    c_f = borrowed(c_f)
+    k_r = borrowed(k_r)
+    k_f = borrowed(k_f)
+    order = borrowed(order)
+    comp_a = borrowed(comp_a)
+    comp_b = borrowed(comp_b)
+    ws = borrowed(ws)
+    wi = borrowed(wi)
     n = x.shape[0]
     kc = rear.shape[0]
     elastic = order.shape[0] > 0
-    nf, ni = newton_work_size(n)
-    if ws.shape[0] < nf or wi.shape[0] < ni:
-        ws = np.empty(nf)
-        wi = np.empty(ni, dtype=np.int64)
     # Every work array is a view of ws / wi (measured: 45 allocations were a fifth of a warm
     # step); what is returned is copied.
     cur, off = _eval_arrays(ws, 0, n, kc)
@@ -1633,6 +1697,8 @@ def newton(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_
     fn, off = _carve(ws, off, (kc,))
     fw_, off = _carve(ws, off, (kc,))
     ew, off = _carve(ws, off, (WORK_SIZE,))
+    bw, off = _carve(ws, off, (B2B_WORK_SIZE,))
+    edw, off = _carve(ws, off, (ELASTIC_WORK_SIZE,))
     dd, off = _carve(ws, off, (7, 7))
     dw, off = _carve(ws, off, (7, 9))
     dd0, off = _carve(ws, off, (7, 7))
@@ -1673,9 +1739,22 @@ def newton(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_
         wrap = -1
     nc, ok_chain = chains_into(n, rear, front, rear_of, front_of, seq, starts)
     starts = starts[:nc + 1]
-    axial, norm = _evaluate(elastic, x, u, cum, fhat, centres, sign, cst, k_load, k_axis, on_nut,
-                            coef_s, coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f,
-                            c_r, c_f, k_r, k_f, order, comp_a, comp_b, cur, True, ew)
+    # The evaluation written out here (and below): a call with 30 arguments per evaluation
+    # cost more than its body's share of a warm step.
+    if elastic:
+        norm = _elastic_residual(
+            x, u, cum, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
+            grid, scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, order,
+            comp_a, comp_b, cur[0], cur[1], cur[2], cur[3], cur[4], cur[5], cur[6],
+            cur[7], cur[8], cur[9], cur[10], cur[11], cur[12], cur[13], cur[14], True, ew,
+            bw)
+        axial = 0.0
+    else:
+        axial, norm = _residual(
+            x, u[0], fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
+            grid, scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, cur[0],
+            cur[1], cur[2], cur[3], cur[4], cur[5], cur[6], cur[7], cur[8], cur[9], cur[10],
+            cur[11], cur[12], True, cur[15], ew, bw)
     if not (elastic or ok_chain):
         return (x.copy(), u.copy(), fhat.copy(), False, 0, norm, cur[3].copy(),
                 cur[4].copy(), cur[7].copy())
@@ -1685,7 +1764,7 @@ def newton(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_
         if elastic:
             elastic_direction(order, behind, ahead, wrap, rear, cur[1], cur[2], cur[0], cur[13],
                               cur[14], cur[12], fhat, comp_b, cur[5], cur[6], cur[8], cur[9],
-                              cur[10], cur[11], xs, ys, dx, du, dcum, df)
+                              cur[10], cur[11], xs, ys, dx, du, dcum, df, edw)
         else:
             du[0] = newton_direction(seq, starts, rear_of, front_of, cur[1], cur[2], cur[0],
                                      axial, cur[12], fhat, cur[5], cur[6], cur[8], cur[9],
@@ -1723,18 +1802,38 @@ def newton(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_
                 cn[i] = cum[i] + step * dcum[i]
             for c in range(kc):
                 fn[c] = fhat[c] + step * df[c]
-            ax_n, nn = _evaluate(elastic, xn, un, cn, fn, centres, sign, cst, k_load, k_axis,
-                                 on_nut, coef_s, coef_n, grid, scale, axial_load_n, rear, front,
-                                 b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b, trial,
-                                 not last, ew)
+            if elastic:
+                nn = _elastic_residual(
+                    xn, un, cn, fn, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
+                    grid, scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, order,
+                    comp_a, comp_b, trial[0], trial[1], trial[2], trial[3], trial[4], trial[5],
+                    trial[6], trial[7], trial[8], trial[9], trial[10], trial[11], trial[12],
+                    trial[13], trial[14], not last, ew, bw)
+                ax_n = 0.0
+            else:
+                ax_n, nn = _residual(
+                    xn, un[0], fn, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
+                    grid, scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, trial[0],
+                    trial[1], trial[2], trial[3], trial[4], trial[5], trial[6], trial[7], trial[8],
+                    trial[9], trial[10], trial[11], trial[12], not last, trial[15], ew, bw)
             if math.isfinite(nn) and (nn < norm or nn <= tol):
                 break
             step *= 0.5
         if last and not nn <= tol:
-            ax_n, nn = _evaluate(elastic, xn, un, cn, fn, centres, sign, cst, k_load, k_axis,
-                                 on_nut, coef_s, coef_n, grid, scale, axial_load_n, rear, front,
-                                 b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b, trial, True,
-                                 ew)
+            if elastic:
+                nn = _elastic_residual(
+                    xn, un, cn, fn, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
+                    grid, scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, order,
+                    comp_a, comp_b, trial[0], trial[1], trial[2], trial[3], trial[4], trial[5],
+                    trial[6], trial[7], trial[8], trial[9], trial[10], trial[11], trial[12],
+                    trial[13], trial[14], True, ew, bw)
+                ax_n = 0.0
+            else:
+                ax_n, nn = _residual(
+                    xn, un[0], fn, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n,
+                    grid, scale, axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, trial[0],
+                    trial[1], trial[2], trial[3], trial[4], trial[5], trial[6], trial[7], trial[8],
+                    trial[9], trial[10], trial[11], trial[12], True, trial[15], ew, bw)
         x, xn = xn, x
         u, un = un, u
         cum, cn = cn, cum
@@ -1761,6 +1860,27 @@ def solve_active_set(x, u, f_all, active, centres, sign, cst, k_load, k_axis, on
     Returns (x, u, f_all, active, converged, budget_exhausted, iterations, norm, terms,
     per_contact); u as in ``newton``.
     """
+    pair_rear = borrowed(pair_rear)
+    pair_front = borrowed(pair_front)
+    centres = borrowed(centres)
+    cst = borrowed(cst)
+    k_load = borrowed(k_load)
+    k_axis = borrowed(k_axis)
+    on_nut = borrowed(on_nut)
+    coef_s = borrowed(coef_s)
+    coef_n = borrowed(coef_n)
+    grid = borrowed(grid)
+    b_r = borrowed(b_r)
+    b_f = borrowed(b_f)
+    c_r = borrowed(c_r)
+    c_f = borrowed(c_f)
+    k_r = borrowed(k_r)
+    k_f = borrowed(k_f)
+    order = borrowed(order)
+    comp_a = borrowed(comp_a)
+    comp_b = borrowed(comp_b)
+    ws = borrowed(ws)
+    wi = borrowed(wi)
     p = pair_rear.shape[0]
     active = active.copy()
     total_it = 0
@@ -1816,6 +1936,32 @@ def _solve_guess(x, u, forces, ring_active, pair_idx, centres, sign, cst, k_load
                  c_f, k_r, k_f, order, comp_a, comp_b, tol, max_it, max_rate, disp_limit,
                  max_changes, budget, ws, wi):
     """``solve_active_set`` from one guess (x, u, forces per ring pair [N]) of ``warm_solve``."""
+    x = borrowed(x)
+    u = borrowed(u)
+    forces = borrowed(forces)
+    ring_active = borrowed(ring_active)
+    pair_idx = borrowed(pair_idx)
+    rear = borrowed(rear)
+    front = borrowed(front)
+    centres = borrowed(centres)
+    cst = borrowed(cst)
+    k_load = borrowed(k_load)
+    k_axis = borrowed(k_axis)
+    on_nut = borrowed(on_nut)
+    coef_s = borrowed(coef_s)
+    coef_n = borrowed(coef_n)
+    grid = borrowed(grid)
+    b_r = borrowed(b_r)
+    b_f = borrowed(b_f)
+    c_r = borrowed(c_r)
+    c_f = borrowed(c_f)
+    k_r = borrowed(k_r)
+    k_f = borrowed(k_f)
+    order = borrowed(order)
+    comp_a = borrowed(comp_a)
+    comp_b = borrowed(comp_b)
+    ws = borrowed(ws)
+    wi = borrowed(wi)
     fg = forces[pair_idx]
     active = np.empty(pair_idx.shape[0], dtype=np.bool_)
     for i in range(pair_idx.shape[0]):
@@ -1843,6 +1989,35 @@ def warm_solve(x, u, x_prev, u_prev, f_prev, d_psi_prev, forces, ring_active, d_
     converged or used up the budget (else the last), the summed iterations, and the B2B slip
     speed of every candidate pair.
     """
+    x = borrowed(x)
+    u = borrowed(u)
+    x_prev = borrowed(x_prev)
+    u_prev = borrowed(u_prev)
+    f_prev = borrowed(f_prev)
+    forces = borrowed(forces)
+    ring_active = borrowed(ring_active)
+    pair_idx = borrowed(pair_idx)
+    rear = borrowed(rear)
+    front = borrowed(front)
+    centres = borrowed(centres)
+    cst = borrowed(cst)
+    k_load = borrowed(k_load)
+    k_axis = borrowed(k_axis)
+    on_nut = borrowed(on_nut)
+    coef_s = borrowed(coef_s)
+    coef_n = borrowed(coef_n)
+    grid = borrowed(grid)
+    b_r = borrowed(b_r)
+    b_f = borrowed(b_f)
+    c_r = borrowed(c_r)
+    c_f = borrowed(c_f)
+    k_r = borrowed(k_r)
+    k_f = borrowed(k_f)
+    order = borrowed(order)
+    comp_a = borrowed(comp_a)
+    comp_b = borrowed(comp_b)
+    ws = borrowed(ws)
+    wi = borrowed(wi)
     n_guess = 1
     gx = np.empty((2,) + x.shape)
     gu = np.empty((2,) + u.shape)
@@ -1850,13 +2025,23 @@ def warm_solve(x, u, x_prev, u_prev, f_prev, d_psi_prev, forces, ring_active, d_
     if d_psi_prev != 0.0:
         r = d_psi / d_psi_prev
         if 0.0 < r <= 4.0:
-            gx[0] = x + r * (x - x_prev)
-            gu[0] = u + r * (u - u_prev)
-            gf[0] = forces + r * (forces - f_prev)
+            # Element by element (the same rounding as the array expression, no temporaries).
+            for i in range(x.shape[0]):
+                for j in range(x.shape[1]):
+                    gx[0, i, j] = x[i, j] + r * (x[i, j] - x_prev[i, j])
+            for i in range(u.shape[0]):
+                gu[0, i] = u[i] + r * (u[i] - u_prev[i])
+            for i in range(forces.shape[0]):
+                gf[0, i] = forces[i] + r * (forces[i] - f_prev[i])
             n_guess = 2
-    gx[n_guess - 1] = x
-    gu[n_guess - 1] = u
-    gf[n_guess - 1] = forces
+    g = n_guess - 1
+    for i in range(x.shape[0]):
+        for j in range(x.shape[1]):
+            gx[g, i, j] = x[i, j]
+    for i in range(u.shape[0]):
+        gu[g, i] = u[i]
+    for i in range(forces.shape[0]):
+        gf[g, i] = forces[i]
     if budget >= 0:
         n_guess = 1
     out = _solve_guess(gx[0], gu[0], gf[0], ring_active, pair_idx, centres, sign, cst, k_load,
@@ -1916,6 +2101,21 @@ def _warm_step_core(azimuth, ratio, x, x_prev, f_prev, forces, ring_active, par,
     Returns (ok, exhausted, iterations, norm, u, x, forces of the candidate pairs [N],
     step_totals' tuple, azimuth, phi, theta, terms, per_contact, rear, front).
     """
+    azimuth = borrowed(azimuth)
+    ratio = borrowed(ratio)
+    x = borrowed(x)
+    x_prev = borrowed(x_prev)
+    f_prev = borrowed(f_prev)
+    forces = borrowed(forces)
+    ring_active = borrowed(ring_active)
+    par = borrowed(par)
+    epar = borrowed(epar)
+    coef_s = borrowed(coef_s)
+    coef_n = borrowed(coef_n)
+    ws = borrowed(ws)
+    wi = borrowed(wi)
+    u = borrowed(u)
+    u_prev = borrowed(u_prev)
     geo = par[0:9]
     cst = par[9:17]
     k_load = par[17:21]
@@ -2042,6 +2242,19 @@ def warm_steps(state, ring_active, angles, velocities, loads, par, epar, coef_s,
     block and active pairs (``warm_step``'s) of the path's last point, or empty arrays if it
     was not reached.
     """
+    state = borrowed(state)
+    ring_active = borrowed(ring_active)
+    angles = borrowed(angles)
+    velocities = borrowed(velocities)
+    loads = borrowed(loads)
+    par = borrowed(par)
+    epar = borrowed(epar)
+    coef_s = borrowed(coef_s)
+    coef_n = borrowed(coef_n)
+    ws = borrowed(ws)
+    wi = borrowed(wi)
+    settings = borrowed(settings)
+    result = borrowed(result)
     n = ring_active.shape[0]
     m = (state.shape[0] - 16 * n - 2) // 2
     azimuth = state[0:n]
