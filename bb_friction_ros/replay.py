@@ -47,7 +47,7 @@ from bb_friction_ros.replay_outputs import (_CDR_LE, _FEEDFORWARD_CDR,  # noqa: 
                                             GROUPS_TOPIC, OUTPUT_TOPICS, prediction_cdr,
                                             PREDICTION_TOPIC)
 from bb_friction_ros.runner import build_runner, InputAssembler, InputError, \
-    InputSample
+    InputSample, prediction_values
 
 CSV_COLUMNS = ["t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n", "torque_pred_nm",
                "torque_b2b_nm"]
@@ -115,13 +115,16 @@ class _Series:
 
     def add(self, pred):
         """Append one prediction (its measurement comes later through ``measure``)."""
-        groups = pred.groups
+        return self.add_values(prediction_values(pred))
+
+    def add_values(self, v):
+        """``add`` the Prediction whose fields are the tuple ``v`` (``process_values``)."""
+        groups = v[10]
         if groups is not self._groups:
             # the same groups answer every sample until the next step: counted once
             self._groups = groups
             self._group_sizes = (len(groups), max((len(g[0]) for g in groups), default=0))
-        row = (pred.stamp_s, pred.torque_total_nm, pred.torque_b2b_nm,
-               pred.nut_velocity_rad_s, pred.axial_load_n) + self._group_sizes
+        row = (v[0], v[4], v[6], v[2], v[3]) + self._group_sizes
         if self.measured:
             return row
         self._append(row + (math.nan,))
@@ -386,9 +389,14 @@ def _row_formats(measured, empirical):
 
 def csv_values(pred, empirical):
     """Return the prediction.csv values of ``pred`` but the measurement (``_row_formats``)."""
-    return (pred.stamp_s, pred.nut_angle_rad, pred.nut_velocity_rad_s, pred.axial_load_n,
-            pred.torque_total_nm, pred.torque_b2b_nm) + \
-        ((pred.torque_empirical_nm,) if empirical else ()) + (int(bool(pred.converged)),)
+    return _csv_values(prediction_values(pred), empirical)
+
+
+def _csv_values(v, empirical):
+    """``csv_values`` of the Prediction whose fields are the tuple ``v``."""
+    if empirical:
+        return (v[0], v[1], v[2], v[3], v[4], v[6], v[7], int(bool(v[8])))
+    return (v[0], v[1], v[2], v[3], v[4], v[6], int(bool(v[8])))
 
 
 def _write_lines(fh, lines):
@@ -426,16 +434,20 @@ class _Sink:
                 self.sq_err += (meas - values[4]) ** 2
                 self.n_err += 1
 
-    def answered(self, pred, stamp_ns_, log_ns, t_in):
-        """Write one answer (``t_in``: perf_counter when its input was taken)."""
+    def answered(self, v, stamp_ns_, log_ns, t_in):
+        """
+        Write one answer (``t_in``: perf_counter when its input was taken).
+
+        ``v``: the Prediction's fields as a tuple (``ModelRunner.process_values``).
+        """
         if self.outbag is not None:
-            self.outbag.publish(pred, stamp_ns_, log_ns, time.perf_counter() - t_in)
-        row = self.series.add(pred)
-        values = csv_values(pred, self.empirical)
+            self.outbag.publish_values(v, stamp_ns_, log_ns, time.perf_counter() - t_in)
+        row = self.series.add_values(v)
+        values = _csv_values(v, self.empirical)
         if self.aligner is None:
             self.lines.append(self.line % values)
         else:
-            done = self.aligner.add_prediction(pred.stamp_s, (values, row))
+            done = self.aligner.add_prediction(v[0], (values, row))
             if done:
                 self.emit(done)
 
@@ -525,10 +537,10 @@ def _feed_items(block, runner, assembler, sink, fast, stamps, stamps_ns, values,
                 continue
             if assembler.load_n is not None:
                 t_in = clock()
-                pred = runner.process(InputSample(
+                answer = runner.process_values(InputSample(
                     stamps[i], values[i], velocities[i], assembler.load_n))
-                if pred is not None:
-                    sink.answered(pred, stamps_ns[i], items[i][1], t_in)
+                if answer is not None:
+                    sink.answered(answer, stamps_ns[i], items[i][1], t_in)
                 continue
         if ev is None:      # a nut_state before any load: rejected with its reason
             ev = block.event(i)
@@ -538,7 +550,7 @@ def _feed_items(block, runner, assembler, sink, fast, stamps, stamps_ns, values,
         t_in = clock()
         pred = feed_event(ev, runner, assembler)
         if pred is not None:
-            sink.answered(pred, stamp_ns(ev), items[i][1], t_in)
+            sink.answered(prediction_values(pred), stamp_ns(ev), items[i][1], t_in)
 
 
 def _stream(src, runner, assembler, out, measured, empirical, outbag, progress,

@@ -117,7 +117,7 @@ class Prediction:
 # its 19 fields through object.__setattr__: 1.9 us of the ~6 us the runner spends on a sample
 # answered from the held state (measured in replay at 1 rev/s).  ``_prediction`` fills the same
 # instance dict in one update (0.8 us): an equal, equally frozen and hashable Prediction.
-_PREDICTION_FIELDS = tuple(f.name for f in fields(Prediction))
+PREDICTION_FIELDS = _PREDICTION_FIELDS = tuple(f.name for f in fields(Prediction))
 _new_object = object.__new__
 
 
@@ -126,6 +126,11 @@ def _prediction(*values):
     pred = _new_object(Prediction)
     pred.__dict__.update(zip(_PREDICTION_FIELDS, values))
     return pred
+
+
+def prediction_values(pred):
+    """Return ``pred``'s fields as a tuple in their order (``process_values``'s answer)."""
+    return tuple(getattr(pred, name) for name in _PREDICTION_FIELDS)
 
 
 def interrupted(exc):
@@ -233,11 +238,15 @@ class _Answers:
         # The state is newer than the sample; its age is the distance between the two.  The
         # empirical terms keep their clock and filter (a backward stamp would restart the
         # acceleration filter): the late sample gets the last sample's empirical torque.
-        return self._answer(sample, self._last_extra, False,
-                            abs(sample.stamp_s - self.schedule.stamp))
+        return self._answer_values(sample, self._last_extra, False,
+                                   abs(sample.stamp_s - self.schedule.stamp))
 
     def _answer(self, sample, extra, stepped, model_age_s):
         """Return the Prediction for ``sample`` from the current state, with its feedforward."""
+        return _prediction(*self._answer_values(sample, extra, stepped, model_age_s))
+
+    def _answer_values(self, sample, extra, stepped, model_age_s):
+        """Return ``_answer``'s Prediction as the tuple of its fields, in their order."""
         st = self._state
         total = state_total = st.torque_total_nm + extra
         b2g, b2b = st.torque_b2g_nm, st.torque_b2b_nm
@@ -266,11 +275,10 @@ class _Answers:
             ff, held = 0.0, True
             if self._held is not None and self._held[1] == direction:
                 ff = self._held[0]
-        return _prediction(sample.stamp_s, sample.nut_angle_rad, sample.nut_velocity_rad_s,
-                           sample.axial_load_n, total, b2g, b2b, extra, converged,
-                           model_age_s, self._state_groups,
-                           self._state_n_balls, stepped, ff, held, state_total, other,
-                           self._arrangement, 0.0)
+        return (sample.stamp_s, sample.nut_angle_rad, sample.nut_velocity_rad_s,
+                sample.axial_load_n, total, b2g, b2b, extra, converged, model_age_s,
+                self._state_groups, self._state_n_balls, stepped, ff, held, state_total, other,
+                self._arrangement, 0.0)
 
     def _update_held(self, total_nm, nut_velocity_rad_s):
         """
@@ -550,6 +558,20 @@ class ModelRunner(_Answers, _Steps):
         ``model_error`` (message in ``stats.last_error``) and the state is reset.
         """
         try:
+            return _prediction(*self._process(sample, allow_step))
+        except Exception as exc:   # any failure of the physics: counted, never fatal
+            self._model_error(exc, nut_state=True)
+            return None
+
+    def process_values(self, sample, allow_step=True):
+        """
+        Return ``process(sample, allow_step)``'s Prediction as the tuple of its fields.
+
+        In ``Prediction``'s field order (``PREDICTION_FIELDS``), or None as ``process``.
+        Replay writes each answer's numbers and never keeps the answer: building the frozen
+        Prediction was a tenth of its work apart from the model (profiled at 1 rev/s).
+        """
+        try:
             return self._process(sample, allow_step)
         except Exception as exc:   # any failure of the physics: counted, never fatal
             self._model_error(exc, nut_state=True)
@@ -651,8 +673,8 @@ class ModelRunner(_Answers, _Steps):
         elif stepped:
             self._update_held(self._state_feedforward(extra, sample),
                               sample.nut_velocity_rad_s)
-        return self._answer(sample, extra, stepped or action is BEFORE,
-                            sample.stamp_s - schedule.stamp)
+        return self._answer_values(sample, extra, stepped or action is BEFORE,
+                                   sample.stamp_s - schedule.stamp)
 
     def profile_fits(self, sample, horizon_periods, n_points):
         """Return True if a look-ahead profile from ``sample`` can end before the next step."""
