@@ -399,11 +399,50 @@ def _csv_values(v, empirical):
     return (v[0], v[1], v[2], v[3], v[4], v[6], int(bool(v[8])))
 
 
-def _write_lines(fh, lines):
-    """Write the queued prediction.csv lines; taken off the queue first, so never twice."""
-    chunk = "".join(lines)
+def _write_lines(fh, lines, empirical=False):
+    """
+    Write the queued prediction.csv rows; taken off the queue first, so never twice.
+
+    ``lines``: (csv values, measured torque or None without the column), ``_csv_text``.
+    """
+    rows = lines[:]
     lines.clear()
-    fh.write(chunk)
+    fh.write(_csv_text(rows, empirical))
+
+
+def _csv_text(rows, empirical):
+    """
+    Return prediction.csv lines of ``rows`` (csv values, measured torque or None).
+
+    Byte for byte ``_row_formats``' lines.  The speed, the load and the model's torques
+    repeat from row to row (the load arrives at a tenth of the nut's rate, a state answers
+    every input until the next step): a float equal to the row before's, and of the same
+    type, is written with that row's text; repr, which finds the shortest exact digits,
+    was half of the CSV's cost.  Zero is always formatted (0.0 and -0.0 are equal), and
+    anything but a Python float (numpy's repr names its type).
+    """
+    out = []
+    append = out.append
+    lw = lf = lt = lb = None
+    sw = sf = st = sb = ""
+    tail = (",%r" if empirical else "") + ",%d\r\n"
+    with_meas = "%.9f,%r,%s,%s,%s,%s,%r" + tail
+    without = "%.9f,%r,%s,%s,%s,%s" + tail
+    for v, meas in rows:
+        w, f, t, b = v[2], v[3], v[4], v[5]
+        if w != lw or w == 0.0 or type(w) is not float:
+            lw, sw = w if type(w) is float else None, repr(w)
+        if f != lf or f == 0.0 or type(f) is not float:
+            lf, sf = f if type(f) is float else None, repr(f)
+        if t != lt or t == 0.0 or type(t) is not float:
+            lt, st = t if type(t) is float else None, repr(t)
+        if b != lb or b == 0.0 or type(b) is not float:
+            lb, sb = b if type(b) is float else None, repr(b)
+        if meas is None:
+            append(without % ((v[0], v[1], sw, sf, st, sb) + v[6:]))
+        else:
+            append(with_meas % ((v[0], v[1], sw, sf, st, sb, meas) + v[6:]))
+    return "".join(out)
 
 
 class _Sink:
@@ -425,10 +464,10 @@ class _Sink:
 
     def emit(self, done):
         """Write the answers the aligner released: ((csv values, series row), measured)."""
-        line, lines, series = self.line, self.lines, self.series
+        lines, series = self.lines, self.series
         for (values, row), meas in done:
             meas = float(meas)
-            lines.append(line % (values[:6] + (meas,) + values[6:]))
+            lines.append((values, meas))
             series.measure(row, meas)
             if math.isfinite(meas):
                 self.sq_err += (meas - values[4]) ** 2
@@ -445,7 +484,7 @@ class _Sink:
         row = self.series.add_values(v)
         values = _csv_values(v, self.empirical)
         if self.aligner is None:
-            self.lines.append(self.line % values)
+            self.lines.append((values, None))
         else:
             done = self.aligner.add_prediction(v[0], (values, row))
             if done:
@@ -482,7 +521,7 @@ class _Sink:
         """Write what is queued (``finish``: the aligner's held answers too)."""
         if finish and self.aligner is not None:
             self.emit(self.aligner.finish())
-        _write_lines(fh, self.lines)
+        _write_lines(fh, self.lines, self.empirical)
         if self.outbag is not None:
             self.outbag.flush()
 
