@@ -343,8 +343,8 @@ class _Steps:
 
         Angle, velocity, load and stamp linear in between (``Schedule._steps_to``); the last
         of them is the sample's own step (``_take_step``).  A model with ``step_path`` takes
-        them with the sample's own step in one call: they are returned for ``_take_step``,
-        else stepped here (and none returned).
+        them with the sample's own step in one call: they are returned for ``_take_step``
+        as (angles, velocities, loads), else stepped here (and none returned).
         """
         n = plan.steps
         if n <= 1:
@@ -357,21 +357,28 @@ class _Steps:
         dw = sample.nut_velocity_rad_s - w0
         df = sample.axial_load_n - f0
         dt = sample.stamp_s - t0
-        path = hasattr(self.screw, "step_path")
-        points = []
+        if hasattr(self.screw, "step_path"):
+            # the path's columns, as _step passes them (an InputSample per sub-step was a
+            # tenth of replay's work apart from the model at 20 rev/s)
+            rs = [i / n for i in range(1, n)]
+            self.stats.substeps += n - 1
+            s.stamp = t0 + (n - 1) / n * dt
+            return ([a0 + r * da for r in rs], [w0 + r * dw for r in rs],
+                    [f0 + r * df for r in rs])
         for i in range(1, n):
             r = i / n
-            between = InputSample(t0 + r * dt, a0 + r * da, w0 + r * dw, f0 + r * df)
-            if path:
-                points.append(between)
-            else:
-                self._step(between, dt / n, answered=False)
+            self._step(InputSample(t0 + r * dt, a0 + r * da, w0 + r * dw, f0 + r * df),
+                       dt / n, answered=False)
             self.stats.substeps += 1
         s.stamp = t0 + (n - 1) / n * dt
-        return points
+        return ()
 
     def _take_step(self, sample, dt_s, between=()):
-        """Step the model to ``sample`` (through ``between`` first) and make it the reference."""
+        """
+        Step the model to ``sample`` (through ``between`` first) and make it the reference.
+
+        ``between``: the sub-steps' (angles, velocities, loads) (``_substeps_to``), or ().
+        """
         self._state = self._step(sample, dt_s, between=between)
         self.stats.coarse_steps += self.schedule.stepped(sample)
 
@@ -380,21 +387,22 @@ class _Steps:
         if between:
             # the sub-steps and this step in one call (WholeScrew.step_path); each step's
             # wall time is the call's share
-            points = list(between) + [sample]
-            res = self.screw.step_path([p.nut_angle_rad for p in points],
-                                       [p.nut_velocity_rad_s for p in points],
-                                       [p.axial_load_n for p in points], dt_s)
+            angles, velocities, loads = between
+            res = self.screw.step_path(angles + [sample.nut_angle_rad],
+                                       velocities + [sample.nut_velocity_rad_s],
+                                       loads + [sample.axial_load_n], dt_s)
             self.stats.nonconverged_steps += res.substeps_not_converged
+            points = len(angles) + 1
         else:
-            points = (sample,)
+            points = 1
             res = self.screw.step(sample.nut_angle_rad, sample.nut_velocity_rad_s,
                                   sample.axial_load_n, dt_s, substep=not answered)
-        self.stats.last_step_wall_s = took = (time.perf_counter() - t0) / len(points)
-        for _ in points:
+        self.stats.last_step_wall_s = took = (time.perf_counter() - t0) / points
+        for _ in range(points):
             mean = self._step_time_s
             self._step_time_s = took if mean is None \
                 else mean + STEP_TIME_WEIGHT * (took - mean)
-        self.stats.model_steps += len(points)
+        self.stats.model_steps += points
         if not res.converged:
             self.stats.nonconverged_steps += 1
         if answered:    # a sub-step's state is never answered: nothing to convert
