@@ -458,7 +458,6 @@ class _Sink:
         self.aligner = MeasuredAligner() if measured else None
         self.empirical = empirical
         self.outbag = outbag
-        self.line = _row_formats(measured, empirical)
         self.lines = []
         self.sq_err, self.n_err = 0.0, 0
 
