@@ -273,12 +273,15 @@ class BagInput:
         before = {t: self.counts[t] for t in self.resolved}
         self.counts.update(conn.topic for conn, _, _ in items)
         block = Block(self, items, before)
-        rows = {}
-        for i, (conn, _, raw) in enumerate(items):
-            kind = self.resolved.get(conn.topic)
-            block.kinds.append(kind)
+        rows, logs, kinds, resolved = {}, [], block.kinds, self.resolved
+        for i, (conn, log_ns, raw) in enumerate(items):
+            kind = resolved.get(conn.topic)
+            kinds.append(kind)
             if kind is not None:
                 rows.setdefault((kind, len(raw)), []).append(i)
+                logs.append(log_ns)
+        if logs:
+            block.log_range = (min(logs), max(logs))
         for (kind, _), idx in rows.items():
             if kind == "nut_state":
                 decoded = _decode_joint_states(items, idx, nut_joint, block)
@@ -457,6 +460,7 @@ class Block:
     def __init__(self, src, items, counts_before):
         n = len(items)
         self.src, self.items, self.kinds = src, items, []
+        self.log_range = None   # (first, last) log time [ns] of its input messages
         self._counts_before = counts_before
         self._numbers = None
         self.fast = np.zeros(n, dtype=bool)

@@ -123,7 +123,7 @@ class _Series:
         if groups is not self._groups:
             # the same groups answer every sample until the next step: counted once
             self._groups = groups
-            self._group_sizes = (len(groups), max((len(g[0]) for g in groups), default=0))
+            self._group_sizes = (len(groups), max([len(g[0]) for g in groups], default=0))
         row = (v[0], v[4], v[6], v[2], v[3]) + self._group_sizes
         if self.measured:
             return row
@@ -610,10 +610,9 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress,
                     raise KeyboardInterrupt
                 if bar is not None:
                     bar.update(len(block.items))
-                logs = [item[1] for item, kind in zip(block.items, block.kinds)
-                        if kind is not None]
-                if logs:
-                    log_min, log_max = min(log_min, min(logs)), max(log_max, max(logs))
+                if block.log_range is not None:
+                    lo, hi = block.log_range
+                    log_min, log_max = min(log_min, lo), max(log_max, hi)
                 _feed_block(block, runner, assembler, sink)
                 sink.flush(fh)
         except BaseException:

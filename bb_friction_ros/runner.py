@@ -745,6 +745,6 @@ def _groups(groups):
     """Convert groups to hashable tuples ((ball ids), (forces N)) for change detection."""
     # WholeScrew's groups are tuples of Python ints and floats already: taken as they are
     # (converting them again per step was a tenth of replay's own CPU at 20 rev/s)
-    return tuple((ids if type(ids) is tuple else tuple(int(i) for i in ids),
-                  forces if type(forces) is tuple else tuple(float(f) for f in forces))
-                 for ids, forces in groups)
+    return tuple([(ids if type(ids) is tuple else tuple(int(i) for i in ids),
+                   forces if type(forces) is tuple else tuple(float(f) for f in forces))
+                  for ids, forces in groups])
