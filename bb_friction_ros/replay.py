@@ -47,7 +47,7 @@ from bb_friction_ros.replay_outputs import (_CDR_LE, _FEEDFORWARD_CDR,  # noqa: 
                                             GROUPS_TOPIC, OUTPUT_TOPICS, prediction_cdr,
                                             PREDICTION_TOPIC)
 from bb_friction_ros.runner import build_runner, InputAssembler, InputError, \
-    InputSample, prediction_values
+    prediction_values
 
 CSV_COLUMNS = ["t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n", "torque_pred_nm",
                "torque_b2b_nm"]
@@ -575,8 +575,8 @@ def _feed_items(block, runner, assembler, sink, fast, stamps, stamps_ns, values,
                 continue
             if assembler.load_n is not None:
                 t_in = clock()
-                answer = runner.process_values(InputSample(
-                    stamps[i], values[i], velocities[i], assembler.load_n))
+                answer = runner.process_scalars(stamps[i], values[i], velocities[i],
+                                                assembler.load_n)
                 if answer is not None:
                     sink.answered(answer, stamps_ns[i], items[i][1], t_in)
                 continue

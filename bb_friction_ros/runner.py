@@ -191,6 +191,50 @@ class _Answers:
     did not converge.
     """
 
+    def process_scalars(self, stamp_s, angle_rad, velocity_rad_s, load_n):
+        """
+        Return ``process_values(InputSample(stamp_s, angle_rad, velocity_rad_s, load_n))``.
+
+        A held sample (``Schedule.holds``) of a runner without empirical terms is answered
+        from the answer of the last held sample of the same state: between two steps only
+        its stamp, angle, velocity, load and age differ (and, with ``mean_b2b``, a
+        feedforward of another load or speed is computed afresh), the counters advance as
+        that answer advanced them.  The sample object, the plan and the answer's branches
+        were most of the runner's work per input in replay (the model step aside).
+        """
+        s = self.schedule
+        c = self._hold_cache
+        if c is not None and self._pending is None and self._live_terms is None \
+                and c[0] is self._state and c[1] is self._state_groups \
+                and c[2] is self._held and c[3] == s.direction \
+                and c[4] == (_sign(velocity_rad_s) if self.mean_b2b is None
+                             else (_sign(velocity_rad_s), load_n, velocity_rad_s)) \
+                and s.holds(stamp_s, angle_rad, velocity_rad_s, load_n):
+            # what _process does for a HOLD without terms, the answer's fields cached
+            stats = self.stats
+            s.late_run = 0
+            stats.samples += 1
+            if stamp_s == s.last_stamp:
+                stats.stamp_stalls += 1
+            self._last_extra = self._last_friction = 0.0
+            s.last_stamp, s.last_angle = stamp_s, angle_rad
+            stats.feedforward_zeroed += c[7]
+            stats.friction_cut += c[8]
+            return (stamp_s, angle_rad, velocity_rad_s, load_n) + c[5] \
+                + (stamp_s - s.stamp,) + c[6]
+        cacheable = self._pending is None and self._live_terms is None \
+            and s.holds(stamp_s, angle_rad, velocity_rad_s, load_n)
+        stats = self.stats
+        zeroed, cut = stats.feedforward_zeroed, stats.friction_cut
+        v = self.process_values(InputSample(stamp_s, angle_rad, velocity_rad_s, load_n))
+        if cacheable and v is not None:
+            self._hold_cache = (
+                self._state, self._state_groups, self._held, s.direction,
+                _sign(velocity_rad_s) if self.mean_b2b is None
+                else (_sign(velocity_rad_s), load_n, velocity_rad_s),
+                v[4:9], v[10:], stats.feedforward_zeroed - zeroed, stats.friction_cut - cut)
+        return v
+
     def _state_feedforward(self, extra, sample):
         """Return the feedforward of the state just stepped at ``sample`` (held if needed)."""
         total, cut = self._with_terms(self._state.torque_total_nm, extra,
@@ -475,6 +519,9 @@ class ModelRunner(_Answers, _Steps):
         self._last_extra = 0.0      # empirical torque of the last sample on time
         self._last_friction = 0.0   # its friction terms' share (empirical_terms.NOT_FRICTION)
         self._pending = None        # (sample, empirical torque, plan): a step after its answer
+        # (state, groups, held, schedule direction, key, answer fields, counters) of the
+        # last held answer: ``process_scalars``
+        self._hold_cache = None
 
     # the schedule's settings and scale, as the live node and the tests read them
     period_s = property(lambda self: self.schedule.period_s)
