@@ -195,12 +195,11 @@ class _Answers:
         """
         Return ``process_values(InputSample(stamp_s, angle_rad, velocity_rad_s, load_n))``.
 
-        A held sample (``Schedule.holds``) of a runner without empirical terms is answered
-        from the answer of the last held sample of the same state: between two steps only
-        its stamp, angle, velocity, load and age differ (and, with ``mean_b2b``, a
-        feedforward of another load or speed is computed afresh), the counters advance as
+        A held sample (``Schedule.holds``) of a runner without empirical terms takes the
+        last held answer of the same state and direction (with ``mean_b2b``: load and
+        speed) with its own stamp, angle, velocity, load and age; the counters advance as
         that answer advanced them.  The sample object, the plan and the answer's branches
-        were most of the runner's work per input in replay (the model step aside).
+        were most of the runner's work per held input in replay.
         """
         s = self.schedule
         c = self._hold_cache
@@ -222,12 +221,15 @@ class _Answers:
             stats.friction_cut += c[8]
             return (stamp_s, angle_rad, velocity_rad_s, load_n) + c[5] \
                 + (stamp_s - s.stamp,) + c[6]
-        cacheable = self._pending is None and self._live_terms is None \
-            and s.holds(stamp_s, angle_rad, velocity_rad_s, load_n)
         stats = self.stats
         zeroed, cut = stats.feedforward_zeroed, stats.friction_cut
+        late, skipped = stats.late_samples, stats.skipped_steps
         v = self.process_values(InputSample(stamp_s, angle_rad, velocity_rad_s, load_n))
-        if cacheable and v is not None:
+        # a HOLD neither stepped, nor left a step pending, nor was late or skipped (asked
+        # after: at 20 rev/s every input steps)
+        if v is not None and not v[12] and self._pending is None \
+                and self._live_terms is None and stats.late_samples == late \
+                and stats.skipped_steps == skipped:
             self._hold_cache = (
                 self._state, self._state_groups, self._held, s.direction,
                 _sign(velocity_rad_s) if self.mean_b2b is None
@@ -452,7 +454,9 @@ class _Steps:
         if answered:    # a sub-step's state is never answered: nothing to convert
             # answered from for every input until the next step: convert once, here
             self._state_groups = _groups(res.groups)
-            self._state_n_balls = int(np.size(res.azimuth_rad))
+            az = res.azimuth_rad
+            # an array's own size: np.size's dispatch is a cost per step at 20 rev/s
+            self._state_n_balls = az.size if type(az) is np.ndarray else int(np.size(az))
             self._state_converged = bool(res.converged)
         return res
 
@@ -519,8 +523,7 @@ class ModelRunner(_Answers, _Steps):
         self._last_extra = 0.0      # empirical torque of the last sample on time
         self._last_friction = 0.0   # its friction terms' share (empirical_terms.NOT_FRICTION)
         self._pending = None        # (sample, empirical torque, plan): a step after its answer
-        # (state, groups, held, schedule direction, key, answer fields, counters) of the
-        # last held answer: ``process_scalars``
+        # the last held answer and what it depends on (``process_scalars``)
         self._hold_cache = None
 
     # the schedule's settings and scale, as the live node and the tests read them
