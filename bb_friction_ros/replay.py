@@ -134,6 +134,17 @@ class _Series:
         """Append a row held back by ``add`` with its measured torque."""
         self._append(row + (meas,))
 
+    def measure_many(self, rows, metas):
+        """``measure`` each of ``rows`` with its measured torque in ``metas``, in order."""
+        buf = self._buf
+        for row, meas in zip(rows, metas):
+            buf.extend(row)
+            buf.append(meas)
+        self.rows += len(rows)
+        if len(buf) >= self.BUFFER_ROWS * len(self.COLUMNS):
+            buf.tofile(self._file)
+            del buf[:]
+
     def _append(self, row):
         self._buf.extend(row)
         self.rows += 1
@@ -463,14 +474,20 @@ class _Sink:
 
     def emit(self, done):
         """Write the answers the aligner released: ((csv values, series row), measured)."""
-        lines, series = self.lines, self.series
-        for (values, row), meas in done:
+        if not done:
+            return
+        append, isfinite = self.lines.append, math.isfinite
+        sq_err, n_err = self.sq_err, self.n_err
+        metas = []
+        for (values, _), meas in done:
             meas = float(meas)
-            lines.append((values, meas))
-            series.measure(row, meas)
-            if math.isfinite(meas):
-                self.sq_err += (meas - values[4]) ** 2
-                self.n_err += 1
+            metas.append(meas)
+            append((values, meas))
+            if isfinite(meas):
+                sq_err += (meas - values[4]) ** 2       # in order, as one by one
+                n_err += 1
+        self.sq_err, self.n_err = sq_err, n_err
+        self.series.measure_many([payload[1] for payload, _ in done], metas)
 
     def answered(self, v, stamp_ns_, log_ns, t_in):
         """
