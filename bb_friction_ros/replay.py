@@ -47,7 +47,7 @@ from bb_friction_ros.replay_outputs import (_CDR_LE, _FEEDFORWARD_CDR,  # noqa: 
                                             GROUPS_TOPIC, OUTPUT_TOPICS, prediction_cdr,
                                             PREDICTION_TOPIC)
 from bb_friction_ros.runner import build_runner, InputAssembler, InputError, \
-    InputSample
+    prediction_values
 
 CSV_COLUMNS = ["t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n", "torque_pred_nm",
                "torque_b2b_nm"]
@@ -115,13 +115,16 @@ class _Series:
 
     def add(self, pred):
         """Append one prediction (its measurement comes later through ``measure``)."""
-        groups = pred.groups
+        return self.add_values(prediction_values(pred))
+
+    def add_values(self, v):
+        """``add`` the Prediction whose fields are the tuple ``v`` (``process_values``)."""
+        groups = v[10]
         if groups is not self._groups:
             # the same groups answer every sample until the next step: counted once
             self._groups = groups
-            self._group_sizes = (len(groups), max((len(g[0]) for g in groups), default=0))
-        row = (pred.stamp_s, pred.torque_total_nm, pred.torque_b2b_nm,
-               pred.nut_velocity_rad_s, pred.axial_load_n) + self._group_sizes
+            self._group_sizes = (len(groups), max([len(g[0]) for g in groups], default=0))
+        row = (v[0], v[4], v[6], v[2], v[3]) + self._group_sizes
         if self.measured:
             return row
         self._append(row + (math.nan,))
@@ -130,6 +133,17 @@ class _Series:
     def measure(self, row, meas):
         """Append a row held back by ``add`` with its measured torque."""
         self._append(row + (meas,))
+
+    def measure_many(self, rows, metas):
+        """``measure`` each of ``rows`` with its measured torque in ``metas``, in order."""
+        buf = self._buf
+        for row, meas in zip(rows, metas):
+            buf.extend(row)
+            buf.append(meas)
+        self.rows += len(rows)
+        if len(buf) >= self.BUFFER_ROWS * len(self.COLUMNS):
+            buf.tofile(self._file)
+            del buf[:]
 
     def _append(self, row):
         self._buf.extend(row)
@@ -386,16 +400,60 @@ def _row_formats(measured, empirical):
 
 def csv_values(pred, empirical):
     """Return the prediction.csv values of ``pred`` but the measurement (``_row_formats``)."""
-    return (pred.stamp_s, pred.nut_angle_rad, pred.nut_velocity_rad_s, pred.axial_load_n,
-            pred.torque_total_nm, pred.torque_b2b_nm) + \
-        ((pred.torque_empirical_nm,) if empirical else ()) + (int(bool(pred.converged)),)
+    return _csv_values(prediction_values(pred), empirical)
 
 
-def _write_lines(fh, lines):
-    """Write the queued prediction.csv lines; taken off the queue first, so never twice."""
-    chunk = "".join(lines)
+def _csv_values(v, empirical):
+    """``csv_values`` of the Prediction whose fields are the tuple ``v``."""
+    if empirical:
+        return (v[0], v[1], v[2], v[3], v[4], v[6], v[7], int(bool(v[8])))
+    return (v[0], v[1], v[2], v[3], v[4], v[6], int(bool(v[8])))
+
+
+def _write_lines(fh, lines, empirical=False):
+    """
+    Write the queued prediction.csv rows; taken off the queue first, so never twice.
+
+    ``lines``: (csv values, measured torque or None without the column), ``_csv_text``.
+    """
+    rows = lines[:]
     lines.clear()
-    fh.write(chunk)
+    fh.write(_csv_text(rows, empirical))
+
+
+def _csv_text(rows, empirical):
+    """
+    Return prediction.csv lines of ``rows`` (csv values, measured torque or None).
+
+    Byte for byte ``_row_formats``' lines.  The speed, the load and the model's torques
+    repeat from row to row (the load arrives at a tenth of the nut's rate, a state answers
+    every input until the next step): a float equal to the row before's, and of the same
+    type, is written with that row's text; repr, which finds the shortest exact digits,
+    was half of the CSV's cost.  Zero is always formatted (0.0 and -0.0 are equal), and
+    anything but a Python float (numpy's repr names its type).
+    """
+    out = []
+    append = out.append
+    lw = lf = lt = lb = None
+    sw = sf = st = sb = ""
+    tail = (",%r" if empirical else "") + ",%d\r\n"
+    with_meas = "%.9f,%r,%s,%s,%s,%s,%r" + tail
+    without = "%.9f,%r,%s,%s,%s,%s" + tail
+    for v, meas in rows:
+        w, f, t, b = v[2], v[3], v[4], v[5]
+        if w != lw or w == 0.0 or type(w) is not float:
+            lw, sw = w if type(w) is float else None, repr(w)
+        if f != lf or f == 0.0 or type(f) is not float:
+            lf, sf = f if type(f) is float else None, repr(f)
+        if t != lt or t == 0.0 or type(t) is not float:
+            lt, st = t if type(t) is float else None, repr(t)
+        if b != lb or b == 0.0 or type(b) is not float:
+            lb, sb = b if type(b) is float else None, repr(b)
+        if meas is None:
+            append(without % ((v[0], v[1], sw, sf, st, sb) + v[6:]))
+        else:
+            append(with_meas % ((v[0], v[1], sw, sf, st, sb, meas) + v[6:]))
+    return "".join(out)
 
 
 class _Sink:
@@ -411,31 +469,40 @@ class _Sink:
         self.aligner = MeasuredAligner() if measured else None
         self.empirical = empirical
         self.outbag = outbag
-        self.line = _row_formats(measured, empirical)
         self.lines = []
         self.sq_err, self.n_err = 0.0, 0
 
     def emit(self, done):
         """Write the answers the aligner released: ((csv values, series row), measured)."""
-        line, lines, series = self.line, self.lines, self.series
-        for (values, row), meas in done:
+        if not done:
+            return
+        append, isfinite = self.lines.append, math.isfinite
+        sq_err, n_err = self.sq_err, self.n_err
+        metas = []
+        for (values, _), meas in done:
             meas = float(meas)
-            lines.append(line % (values[:6] + (meas,) + values[6:]))
-            series.measure(row, meas)
-            if math.isfinite(meas):
-                self.sq_err += (meas - values[4]) ** 2
-                self.n_err += 1
+            metas.append(meas)
+            append((values, meas))
+            if isfinite(meas):
+                sq_err += (meas - values[4]) ** 2       # in order, as one by one
+                n_err += 1
+        self.sq_err, self.n_err = sq_err, n_err
+        self.series.measure_many([payload[1] for payload, _ in done], metas)
 
-    def answered(self, pred, stamp_ns_, log_ns, t_in):
-        """Write one answer (``t_in``: perf_counter when its input was taken)."""
+    def answered(self, v, stamp_ns_, log_ns, t_in):
+        """
+        Write one answer (``t_in``: perf_counter when its input was taken).
+
+        ``v``: the Prediction's fields as a tuple (``ModelRunner.process_values``).
+        """
         if self.outbag is not None:
-            self.outbag.publish(pred, stamp_ns_, log_ns, time.perf_counter() - t_in)
-        row = self.series.add(pred)
-        values = csv_values(pred, self.empirical)
+            self.outbag.publish_values(v, stamp_ns_, log_ns, time.perf_counter() - t_in)
+        row = self.series.add_values(v)
+        values = _csv_values(v, self.empirical)
         if self.aligner is None:
-            self.lines.append(self.line % values)
+            self.lines.append((values, None))
         else:
-            done = self.aligner.add_prediction(pred.stamp_s, (values, row))
+            done = self.aligner.add_prediction(v[0], (values, row))
             if done:
                 self.emit(done)
 
@@ -470,7 +537,7 @@ class _Sink:
         """Write what is queued (``finish``: the aligner's held answers too)."""
         if finish and self.aligner is not None:
             self.emit(self.aligner.finish())
-        _write_lines(fh, self.lines)
+        _write_lines(fh, self.lines, self.empirical)
         if self.outbag is not None:
             self.outbag.flush()
 
@@ -525,10 +592,10 @@ def _feed_items(block, runner, assembler, sink, fast, stamps, stamps_ns, values,
                 continue
             if assembler.load_n is not None:
                 t_in = clock()
-                pred = runner.process(InputSample(
-                    stamps[i], values[i], velocities[i], assembler.load_n))
-                if pred is not None:
-                    sink.answered(pred, stamps_ns[i], items[i][1], t_in)
+                answer = runner.process_scalars(stamps[i], values[i], velocities[i],
+                                                assembler.load_n)
+                if answer is not None:
+                    sink.answered(answer, stamps_ns[i], items[i][1], t_in)
                 continue
         if ev is None:      # a nut_state before any load: rejected with its reason
             ev = block.event(i)
@@ -538,7 +605,7 @@ def _feed_items(block, runner, assembler, sink, fast, stamps, stamps_ns, values,
         t_in = clock()
         pred = feed_event(ev, runner, assembler)
         if pred is not None:
-            sink.answered(pred, stamp_ns(ev), items[i][1], t_in)
+            sink.answered(prediction_values(pred), stamp_ns(ev), items[i][1], t_in)
 
 
 def _stream(src, runner, assembler, out, measured, empirical, outbag, progress,
@@ -560,10 +627,9 @@ def _stream(src, runner, assembler, out, measured, empirical, outbag, progress,
                     raise KeyboardInterrupt
                 if bar is not None:
                     bar.update(len(block.items))
-                logs = [item[1] for item, kind in zip(block.items, block.kinds)
-                        if kind is not None]
-                if logs:
-                    log_min, log_max = min(log_min, min(logs)), max(log_max, max(logs))
+                if block.log_range is not None:
+                    lo, hi = block.log_range
+                    log_min, log_max = min(log_min, lo), max(log_max, hi)
                 _feed_block(block, runner, assembler, sink)
                 sink.flush(fh)
         except BaseException:

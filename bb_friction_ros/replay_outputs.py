@@ -13,6 +13,7 @@ import struct
 from bb_friction_ros import interface
 from bb_friction_ros.bag_types import friction_typestore
 from bb_friction_ros.bag_writer import BagWriter
+from bb_friction_ros.runner import prediction_values
 
 # Output topics and types, as friction_node publishes them (node.py).
 PREDICTION_TOPIC, GROUPS_TOPIC, FEEDFORWARD_TOPIC = OUTPUT_TOPICS = tuple(
@@ -40,6 +41,17 @@ def prediction_cdr(pred, sec, nanosec, latency_s):
                                 *interface.prediction_values(pred, latency_s))
 
 
+def prediction_values_cdr(v, sec, nanosec, latency_s):
+    """
+    Return ``prediction_cdr`` of the Prediction whose fields are the tuple ``v``.
+
+    ``runner.ModelRunner.process_values``' answer, in ``Prediction``'s field order.
+    """
+    return _PREDICTION_CDR.pack(_CDR_LE, sec, nanosec, 1, b"\x00", v[1], v[2], v[3], v[4],
+                                v[5], v[6], v[7], bool(v[8]), latency_s, v[9], len(v[10]),
+                                v[15], bool(v[16]), int(v[17]), v[18])
+
+
 def feedforward_cdr(value_nm):
     """Return the CDR of the node's feedforward Float64MultiArray: ``[value_nm]``."""
     return _FEEDFORWARD_CDR.pack(_CDR_LE, 0, 0, 1, value_nm)
@@ -54,15 +66,32 @@ _GROUPS_HEAD_CDR = struct.Struct("<4siII1s3xdII")
 
 def groups_cdr(groups, sec, nanosec, nut_angle_rad, n_balls):
     """Return the CDR of friction_node's ContactGroupStatus for ``groups`` (see node.py)."""
-    parts = [_GROUPS_HEAD_CDR.pack(_CDR_LE, sec, nanosec, 1, b"\x00", nut_angle_rad,
-                                   n_balls, len(groups))]
-    pos = _GROUPS_HEAD_CDR.size - 4            # payload offsets, after the encapsulation
+    args = [_CDR_LE, sec, nanosec, 1, b"\x00", nut_angle_rad, n_balls, len(groups)]
+    sizes = []
     for ids, forces in groups:
-        n, m = len(ids), len(forces)
+        sizes.append((len(ids), len(forces)))
+        args.append(len(ids))
+        args += ids
+        args.append(len(forces))
+        args += forces
+    return _status_struct(tuple(sizes)).pack(*args)
+
+
+@functools.lru_cache(maxsize=1024)
+def _status_struct(sizes):
+    """
+    Return the Struct of a whole ContactGroupStatus whose groups have ``sizes`` (ids, forces).
+
+    One pack per status: the sizes of the groups repeat from step to step, and a pack per
+    group was most of the status's cost at 20 rev/s, where every step writes one.
+    """
+    fmt = [_GROUPS_HEAD_CDR.format]
+    pos = _GROUPS_HEAD_CDR.size - 4            # payload offsets, after the encapsulation
+    for n, m in sizes:
         pad = -(pos + 8 + 4 * n) % 8 if m else 0
-        parts.append(_group_struct(n, m, pad).pack(n, *ids, m, *forces))
+        fmt.append(_group_struct(n, m, pad).format[1:])
         pos += 8 + 4 * n + pad + 8 * m
-    return b"".join(parts)
+    return struct.Struct("".join(fmt))
 
 
 @functools.lru_cache(maxsize=256)
@@ -131,19 +160,25 @@ class _OutputBag:
         beside the live node would log them (its latency aside).  Logged at the header stamp,
         a device-clock recording's outputs would lie decades from its inputs.
         """
+        self.publish_values(prediction_values(pred), stamp, log_ns, latency_s)
+
+    def publish_values(self, v, stamp, log_ns, latency_s):
+        """``publish`` the Prediction whose fields are the tuple ``v`` (``process_values``)."""
         sec, nanosec = divmod(stamp, 1_000_000_000)
         pending = self.pending
         pending.append((self._prediction, log_ns,
-                        prediction_cdr(pred, sec, nanosec, latency_s)))
+                        prediction_values_cdr(v, sec, nanosec, latency_s)))
         # the runner's safe value (held or 0 after a step that did not converge), as the node
-        pending.append((self._feedforward, log_ns, feedforward_cdr(pred.feedforward_nm)))
+        pending.append((self._feedforward, log_ns, _FEEDFORWARD_CDR.pack(_CDR_LE, 0, 0, 1,
+                                                                         v[13])))
         self._answers += 1
-        if pred.groups != self._last_groups:
+        groups = v[10]
+        if groups is not self._last_groups and groups != self._last_groups:
             # The node publishes groups on change (and repeats them on a wall-clock timer,
             # which carries no new information and no input stamp: not reproduced here).
-            self._last_groups = pred.groups
+            self._last_groups = groups
             pending.append((self._groups, log_ns, groups_cdr(
-                pred.groups, sec, nanosec, pred.nut_angle_rad, pred.n_balls)))
+                groups, sec, nanosec, v[1], v[11])))
             self._group_changes += 1
 
     def flush(self):

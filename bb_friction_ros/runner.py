@@ -117,7 +117,7 @@ class Prediction:
 # its 19 fields through object.__setattr__: 1.9 us of the ~6 us the runner spends on a sample
 # answered from the held state (measured in replay at 1 rev/s).  ``_prediction`` fills the same
 # instance dict in one update (0.8 us): an equal, equally frozen and hashable Prediction.
-_PREDICTION_FIELDS = tuple(f.name for f in fields(Prediction))
+PREDICTION_FIELDS = _PREDICTION_FIELDS = tuple(f.name for f in fields(Prediction))
 _new_object = object.__new__
 
 
@@ -126,6 +126,11 @@ def _prediction(*values):
     pred = _new_object(Prediction)
     pred.__dict__.update(zip(_PREDICTION_FIELDS, values))
     return pred
+
+
+def prediction_values(pred):
+    """Return ``pred``'s fields as a tuple in their order (``process_values``'s answer)."""
+    return tuple(getattr(pred, name) for name in _PREDICTION_FIELDS)
 
 
 def interrupted(exc):
@@ -186,6 +191,52 @@ class _Answers:
     did not converge.
     """
 
+    def process_scalars(self, stamp_s, angle_rad, velocity_rad_s, load_n):
+        """
+        Return ``process_values(InputSample(stamp_s, angle_rad, velocity_rad_s, load_n))``.
+
+        A held sample (``Schedule.holds``) of a runner without empirical terms takes the
+        last held answer of the same state and direction (with ``mean_b2b``: load and
+        speed) with its own stamp, angle, velocity, load and age; the counters advance as
+        that answer advanced them.  The sample object, the plan and the answer's branches
+        were most of the runner's work per held input in replay.
+        """
+        s = self.schedule
+        c = self._hold_cache
+        if c is not None and self._pending is None and self._live_terms is None \
+                and c[0] is self._state and c[1] is self._state_groups \
+                and c[2] is self._held and c[3] == s.direction \
+                and c[4] == (_sign(velocity_rad_s) if self.mean_b2b is None
+                             else (_sign(velocity_rad_s), load_n, velocity_rad_s)) \
+                and s.holds(stamp_s, angle_rad, velocity_rad_s, load_n):
+            # what _process does for a HOLD without terms, the answer's fields cached
+            stats = self.stats
+            s.late_run = 0
+            stats.samples += 1
+            if stamp_s == s.last_stamp:
+                stats.stamp_stalls += 1
+            self._last_extra = self._last_friction = 0.0
+            s.last_stamp, s.last_angle = stamp_s, angle_rad
+            stats.feedforward_zeroed += c[7]
+            stats.friction_cut += c[8]
+            return (stamp_s, angle_rad, velocity_rad_s, load_n) + c[5] \
+                + (stamp_s - s.stamp,) + c[6]
+        stats = self.stats
+        zeroed, cut = stats.feedforward_zeroed, stats.friction_cut
+        late, skipped = stats.late_samples, stats.skipped_steps
+        v = self.process_values(InputSample(stamp_s, angle_rad, velocity_rad_s, load_n))
+        # a HOLD neither stepped, nor left a step pending, nor was late or skipped (asked
+        # after: at 20 rev/s every input steps)
+        if v is not None and not v[12] and self._pending is None \
+                and self._live_terms is None and stats.late_samples == late \
+                and stats.skipped_steps == skipped:
+            self._hold_cache = (
+                self._state, self._state_groups, self._held, s.direction,
+                _sign(velocity_rad_s) if self.mean_b2b is None
+                else (_sign(velocity_rad_s), load_n, velocity_rad_s),
+                v[4:9], v[10:], stats.feedforward_zeroed - zeroed, stats.friction_cut - cut)
+        return v
+
     def _state_feedforward(self, extra, sample):
         """Return the feedforward of the state just stepped at ``sample`` (held if needed)."""
         total, cut = self._with_terms(self._state.torque_total_nm, extra,
@@ -233,11 +284,15 @@ class _Answers:
         # The state is newer than the sample; its age is the distance between the two.  The
         # empirical terms keep their clock and filter (a backward stamp would restart the
         # acceleration filter): the late sample gets the last sample's empirical torque.
-        return self._answer(sample, self._last_extra, False,
-                            abs(sample.stamp_s - self.schedule.stamp))
+        return self._answer_values(sample, self._last_extra, False,
+                                   abs(sample.stamp_s - self.schedule.stamp))
 
     def _answer(self, sample, extra, stepped, model_age_s):
         """Return the Prediction for ``sample`` from the current state, with its feedforward."""
+        return _prediction(*self._answer_values(sample, extra, stepped, model_age_s))
+
+    def _answer_values(self, sample, extra, stepped, model_age_s):
+        """Return ``_answer``'s Prediction as the tuple of its fields, in their order."""
         st = self._state
         total = state_total = st.torque_total_nm + extra
         b2g, b2b = st.torque_b2g_nm, st.torque_b2b_nm
@@ -266,11 +321,10 @@ class _Answers:
             ff, held = 0.0, True
             if self._held is not None and self._held[1] == direction:
                 ff = self._held[0]
-        return _prediction(sample.stamp_s, sample.nut_angle_rad, sample.nut_velocity_rad_s,
-                           sample.axial_load_n, total, b2g, b2b, extra, converged,
-                           model_age_s, self._state_groups,
-                           self._state_n_balls, stepped, ff, held, state_total, other,
-                           self._arrangement, 0.0)
+        return (sample.stamp_s, sample.nut_angle_rad, sample.nut_velocity_rad_s,
+                sample.axial_load_n, total, b2g, b2b, extra, converged, model_age_s,
+                self._state_groups, self._state_n_balls, stepped, ff, held, state_total, other,
+                self._arrangement, 0.0)
 
     def _update_held(self, total_nm, nut_velocity_rad_s):
         """
@@ -335,8 +389,8 @@ class _Steps:
 
         Angle, velocity, load and stamp linear in between (``Schedule._steps_to``); the last
         of them is the sample's own step (``_take_step``).  A model with ``step_path`` takes
-        them with the sample's own step in one call: they are returned for ``_take_step``,
-        else stepped here (and none returned).
+        them with the sample's own step in one call: they are returned for ``_take_step``
+        as (angles, velocities, loads), else stepped here (and none returned).
         """
         n = plan.steps
         if n <= 1:
@@ -349,21 +403,28 @@ class _Steps:
         dw = sample.nut_velocity_rad_s - w0
         df = sample.axial_load_n - f0
         dt = sample.stamp_s - t0
-        path = hasattr(self.screw, "step_path")
-        points = []
+        if hasattr(self.screw, "step_path"):
+            # the path's columns, as _step passes them (an InputSample per sub-step was a
+            # tenth of replay's work apart from the model at 20 rev/s)
+            rs = [i / n for i in range(1, n)]
+            self.stats.substeps += n - 1
+            s.stamp = t0 + (n - 1) / n * dt
+            return ([a0 + r * da for r in rs], [w0 + r * dw for r in rs],
+                    [f0 + r * df for r in rs])
         for i in range(1, n):
             r = i / n
-            between = InputSample(t0 + r * dt, a0 + r * da, w0 + r * dw, f0 + r * df)
-            if path:
-                points.append(between)
-            else:
-                self._step(between, dt / n, answered=False)
+            self._step(InputSample(t0 + r * dt, a0 + r * da, w0 + r * dw, f0 + r * df),
+                       dt / n, answered=False)
             self.stats.substeps += 1
         s.stamp = t0 + (n - 1) / n * dt
-        return points
+        return ()
 
     def _take_step(self, sample, dt_s, between=()):
-        """Step the model to ``sample`` (through ``between`` first) and make it the reference."""
+        """
+        Step the model to ``sample`` (through ``between`` first) and make it the reference.
+
+        ``between``: the sub-steps' (angles, velocities, loads) (``_substeps_to``), or ().
+        """
         self._state = self._step(sample, dt_s, between=between)
         self.stats.coarse_steps += self.schedule.stepped(sample)
 
@@ -372,27 +433,30 @@ class _Steps:
         if between:
             # the sub-steps and this step in one call (WholeScrew.step_path); each step's
             # wall time is the call's share
-            points = list(between) + [sample]
-            res = self.screw.step_path([p.nut_angle_rad for p in points],
-                                       [p.nut_velocity_rad_s for p in points],
-                                       [p.axial_load_n for p in points], dt_s)
+            angles, velocities, loads = between
+            res = self.screw.step_path(angles + [sample.nut_angle_rad],
+                                       velocities + [sample.nut_velocity_rad_s],
+                                       loads + [sample.axial_load_n], dt_s)
             self.stats.nonconverged_steps += res.substeps_not_converged
+            points = len(angles) + 1
         else:
-            points = (sample,)
+            points = 1
             res = self.screw.step(sample.nut_angle_rad, sample.nut_velocity_rad_s,
                                   sample.axial_load_n, dt_s, substep=not answered)
-        self.stats.last_step_wall_s = took = (time.perf_counter() - t0) / len(points)
-        for _ in points:
+        self.stats.last_step_wall_s = took = (time.perf_counter() - t0) / points
+        for _ in range(points):
             mean = self._step_time_s
             self._step_time_s = took if mean is None \
                 else mean + STEP_TIME_WEIGHT * (took - mean)
-        self.stats.model_steps += len(points)
+        self.stats.model_steps += points
         if not res.converged:
             self.stats.nonconverged_steps += 1
         if answered:    # a sub-step's state is never answered: nothing to convert
             # answered from for every input until the next step: convert once, here
             self._state_groups = _groups(res.groups)
-            self._state_n_balls = int(np.size(res.azimuth_rad))
+            az = res.azimuth_rad
+            # an array's own size: np.size's dispatch is a cost per step at 20 rev/s
+            self._state_n_balls = az.size if type(az) is np.ndarray else int(np.size(az))
             self._state_converged = bool(res.converged)
         return res
 
@@ -459,6 +523,8 @@ class ModelRunner(_Answers, _Steps):
         self._last_extra = 0.0      # empirical torque of the last sample on time
         self._last_friction = 0.0   # its friction terms' share (empirical_terms.NOT_FRICTION)
         self._pending = None        # (sample, empirical torque, plan): a step after its answer
+        # the last held answer and what it depends on (``process_scalars``)
+        self._hold_cache = None
 
     # the schedule's settings and scale, as the live node and the tests read them
     period_s = property(lambda self: self.schedule.period_s)
@@ -548,6 +614,20 @@ class ModelRunner(_Answers, _Steps):
         A model step that raises must stop neither the node nor replay, and both must then
         agree: the sample gets no prediction (None), it is counted as rejected
         ``model_error`` (message in ``stats.last_error``) and the state is reset.
+        """
+        try:
+            return _prediction(*self._process(sample, allow_step))
+        except Exception as exc:   # any failure of the physics: counted, never fatal
+            self._model_error(exc, nut_state=True)
+            return None
+
+    def process_values(self, sample, allow_step=True):
+        """
+        Return ``process(sample, allow_step)``'s Prediction as the tuple of its fields.
+
+        In ``Prediction``'s field order (``PREDICTION_FIELDS``), or None as ``process``.
+        Replay writes each answer's numbers and never keeps the answer: building the frozen
+        Prediction was a tenth of its work apart from the model (profiled at 1 rev/s).
         """
         try:
             return self._process(sample, allow_step)
@@ -651,8 +731,8 @@ class ModelRunner(_Answers, _Steps):
         elif stepped:
             self._update_held(self._state_feedforward(extra, sample),
                               sample.nut_velocity_rad_s)
-        return self._answer(sample, extra, stepped or action is BEFORE,
-                            sample.stamp_s - schedule.stamp)
+        return self._answer_values(sample, extra, stepped or action is BEFORE,
+                                   sample.stamp_s - schedule.stamp)
 
     def profile_fits(self, sample, horizon_periods, n_points):
         """Return True if a look-ahead profile from ``sample`` can end before the next step."""
@@ -715,6 +795,6 @@ def _groups(groups):
     """Convert groups to hashable tuples ((ball ids), (forces N)) for change detection."""
     # WholeScrew's groups are tuples of Python ints and floats already: taken as they are
     # (converting them again per step was a tenth of replay's own CPU at 20 rev/s)
-    return tuple((ids if type(ids) is tuple else tuple(int(i) for i in ids),
-                  forces if type(forces) is tuple else tuple(float(f) for f in forces))
-                 for ids, forces in groups)
+    return tuple([(ids if type(ids) is tuple else tuple(int(i) for i in ids),
+                   forces if type(forces) is tuple else tuple(float(f) for f in forces))
+                  for ids, forces in groups])

@@ -139,6 +139,24 @@ class Schedule:
         steps, long_jump = self._steps_to(sample)
         return Plan(AFTER if self._after_answer(sample) else BEFORE, steps, long_jump)
 
+    def holds(self, stamp_s, angle_rad, velocity_rad_s, load_n):
+        """
+        Return True if ``plan`` would answer this sample from the current state (HOLD).
+
+        ``plan``'s decision for a sample given as numbers, without building it: a held
+        sample is most of a stream (every input between two steps), and replay answers it
+        through ``ModelRunner.process_scalars``.  False for every other plan.
+        """
+        last = self.last_stamp
+        if last is None or self.stamp is None or stamp_s < last:
+            return False
+        if _sign(velocity_rad_s) != self.direction \
+                or abs(angle_rad - self.angle) \
+                >= self.step_rad * self.scale - ANGLE_RESOLUTION_RAD \
+                or stamp_s - self.stamp >= self.period_s * self.scale - STAMP_RESOLUTION_S:
+            return False
+        return stamp_s != last or load_n == self.load
+
     def _due_after(self, direction, angle_rad, stamp_s, later):
         """
         Return True if a step is due at ``later`` after one at (direction, angle, stamp).

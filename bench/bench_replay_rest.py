@@ -9,7 +9,9 @@ Here it is measured directly: each replay runs in a child process in which
 ``WholeScrew.step`` (and ``step_path``, which takes an input's sub-steps and its own step
 in one call) returns the results of the first ``RECORDED`` real calls over and
 over (the contact groups still change, so the output bag still writes them; the CPU of the
-real steps is subtracted); the runner's
+real steps is subtracted), inside the streaming loop only: the runner's warm-up, the friction
+sign check and the tables built on first use take real steps, and such tables go to the
+bench's own cache (``WORKDIR/cache``), never the package's.  The runner's
 schedule, reading, decoding, alignment, CSV, plotted series and the output bag run as in a
 real replay.  Figure: the streaming loop's CPU time (summary.json ``cpu_s``), min and median of
 ``--repeats``, per second of recording.  ``--baseline DIR`` runs, alternately in the same
@@ -40,8 +42,10 @@ if sys.argv[1]:
     sys.path.insert(0, sys.argv[1])
 from bb_friction_ros import replay as R
 from bb_friction_ros.ball_screw.whole_screw import WholeScrew
-real, recorded, k, real_s = WholeScrew.step, [], [0], [0.0]
+real, recorded, k, real_s, active = WholeScrew.step, [], [0], [0.0], [False]
 def step(self, *args, **kw):
+    if not active[0]:
+        return real(self, *args, **kw)
     if len(recorded) < int(sys.argv[5]):
         c0 = time.process_time()
         recorded.append(real(self, *args, **kw))
@@ -53,6 +57,8 @@ WholeScrew.step = step
 if hasattr(WholeScrew, "step_path"):
     real_path, recorded_path, kp = WholeScrew.step_path, [], [0]
     def step_path(self, *args, **kw):
+        if not active[0]:
+            return real_path(self, *args, **kw)
         if len(recorded_path) < int(sys.argv[5]):
             c0 = time.process_time()
             recorded_path.append(real_path(self, *args, **kw))
@@ -64,7 +70,11 @@ if hasattr(WholeScrew, "step_path"):
 stream = R._stream
 def timed_stream(*args, **kw):
     real_s[0] = 0.0     # the runner's warm-up steps are not in the loop's cpu_s
-    return stream(*args, **kw)
+    active[0] = True
+    try:
+        return stream(*args, **kw)
+    finally:
+        active[0] = False
 R._stream = timed_stream
 s = R.replay(sys.argv[2], sys.argv[3], progress=False, write_bag=sys.argv[4] == "1")
 print(json.dumps({"cpu_s": s["cpu_s"], "real_s": real_s[0], "file": R.__file__}))
@@ -78,7 +88,11 @@ def rest_once(path, bag, out, write_bag):
     Less the CPU of the real steps among the first ``RECORDED`` (a sixth of the model at
     1 rev/s, where the bag holds 1200 steps: counted as the rest until 2026-11-26).
     """
-    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    # Tables the model builds on first use (mean_b2b's) go to the bench's own cache: built
+    # while steps were replayed they would be wrong, and in the package's cache every later
+    # run would read them (the recorded steps are only replayed inside the stream, too).
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+               BB_FRICTION_CACHE=str(Path(out).resolve().parent / "cache"))
     env.pop("_ROS_WHEELS_BOOTSTRAP_COMPLETE", None)
     # -P: the bench's own directory (or the cwd) must not shadow the package measured
     res = subprocess.run([sys.executable, "-P", "-c", CHILD, path, str(bag), str(out),

@@ -471,3 +471,92 @@ def test_releasing_once_per_batch_gives_what_each_message_gives(batch):
     assert [k for k, _ in batched] == [k for k, _ in each] == list(range(t.size))
     np.testing.assert_array_equal([v for _, v in batched], [v for _, v in each])
     assert (a1.runs, a1.late, a1.ahead) == (a2.runs, a2.late, a2.ahead)
+
+
+def _mcap_bag(path, rng, n, back_s, compression=None):
+    """A rosbags-written mcap of ``n`` random messages on three topics, several chunks."""
+    from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
+    from bb_friction_ros.bags import _typestore
+    store = _typestore()
+    writer = Writer(path, version=9, storage_plugin=StoragePlugin.MCAP)
+    if compression is not None:
+        writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
+    written = []
+    with writer:
+        conns = [writer.add_connection(t, m, typestore=store) for t, m in (
+            ("/nut_state", "sensor_msgs/msg/JointState"),
+            ("/axial_load", "geometry_msgs/msg/WrenchStamped"),
+            ("/other", "std_msgs/msg/String"))]
+        t = 100 * 10**9
+        for _ in range(n):
+            # log times mostly forward, a few back by up to ``back_s``, ties too
+            t += int(rng.choice([0, 1000, 10**6])) - (int(rng.integers(0, back_s * 1e9) + 1)
+                                                      if back_s and rng.random() < 0.02 else 0)
+            writer.write(conns[int(rng.integers(0, 3))], t,
+                         rng.bytes(int(rng.choice([20, 300, 5000, 100_000],
+                                                  p=[0.5, 0.3, 0.19, 0.01]))))
+            written.append(t)
+    return written
+
+
+@pytest.mark.parametrize("compression", [None, "zstd"])
+def test_the_own_mcap_reader_reads_exactly_what_rosbags_reads(tmp_path, compression):
+    """
+    mcap_messages (replay's reader of single-mcap bags) yields rosbags' messages: the same
+    connections, log times and bytes in the same order, across chunks, with log times
+    going back inside a chunk and ties, for all topics or some, from the bag directory or
+    its .mcap file; chunks whose time ranges overlap are left to rosbags (None).
+    """
+    from rosbags.rosbag2 import Reader
+    from bb_friction_ros.bags import mcap_messages
+    rng = np.random.default_rng(5)
+    written = _mcap_bag(tmp_path / "bag", rng, 3000, 1e-4, compression)
+    assert written != sorted(written) and len(set(written)) < len(written)
+    (file,) = (tmp_path / "bag").glob("*.mcap")
+    for path in (tmp_path / "bag", file):
+        with Reader(path) as reader:
+            assert len(reader.storage.storages[0].chunks if path.is_dir()
+                       else reader.storage.chunks) >= 3
+            for conns in (reader.connections, reader.connections[:1],
+                          reader.connections[1:]):
+                want = list(reader.messages(connections=conns))
+                got = mcap_messages(reader, conns)
+                assert got is not None
+                got = list(got)
+                assert len(got) == len(want) > 0
+                assert all(g[0] is w[0] and g[1:] == (w[1], bytes(w[2]))
+                           for g, w in zip(got, want))
+    # log times back by up to a second: chunks overlap, rosbags merges them
+    _mcap_bag(tmp_path / "back", np.random.default_rng(6), 3000, 1.0, compression)
+    with Reader(tmp_path / "back") as reader:
+        assert mcap_messages(reader, reader.connections) is None
+
+
+def test_the_own_mcap_reader_reports_a_damaged_chunk_as_rosbags_does(tmp_path):
+    """A chunk the own reader cannot parse is read by rosbags: its error, same position."""
+    from bb_friction_ros.bags import BagInput, mcap_messages
+    _mcap_bag(tmp_path / "bag", np.random.default_rng(8), 3000, 0.0)
+    (file,) = (tmp_path / "bag").glob("*.mcap")
+    with BagInput(tmp_path / "bag") as src:
+        assert mcap_messages(src._reader, src.connections) is not None
+        chunk = sorted(src._reader.storage.storages[0].chunks,
+                       key=lambda c: c.chunk_start_offset)[1]
+    raw = bytearray(file.read_bytes())
+    # the second chunk's records: a message record's length made to overrun the chunk
+    start = chunk.chunk_start_offset + 9 + 40 + len(chunk.compression)
+    raw[start + 1:start + 9] = (10**9).to_bytes(8, "little")
+    file.write_bytes(bytes(raw))
+    errors = []
+    for own in (False, True):
+        with BagInput(tmp_path / "bag") as src:
+            if not own:
+                import bb_friction_ros.bags as bags
+                real, bags.mcap_messages = bags.mcap_messages, lambda *a: None
+            try:
+                with pytest.raises(BagError) as err:
+                    sum(len(b.items) for b in src.blocks("nut_joint"))
+            finally:
+                if not own:
+                    bags.mcap_messages = real
+            errors.append(str(err.value))
+    assert errors[0] == errors[1] and "damaged bag: reading failed after" in errors[0], errors

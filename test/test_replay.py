@@ -283,6 +283,35 @@ def test_csv_lines_are_what_csv_writer_writes():
             assert "".join(lines) == fh.getvalue()
 
 
+def test_csv_text_reusing_repeated_values_is_the_row_formats_text():
+    """
+    The stream writes its rows with _csv_text, which reuses the text of a speed, load or
+    torque equal to the row before's: byte for byte _row_formats' lines, through repeats
+    of 0.0 and -0.0, NaN, infinities and numpy floats equal to Python ones.
+    """
+    from bb_friction_ros.replay import _csv_text, _row_formats
+    rng = np.random.default_rng(3)
+    odd = [math.nan, math.inf, -math.inf, -0.0, 0.0, 1e-300, 5e-324, 0.1, np.float64(0.1),
+           np.float64(-0.0), 1.5, np.float64(1.5)]
+    for measured in (False, True):
+        for empirical in (False, True):
+            rows, want, v = [], [], [float(x) for x in rng.normal(size=8)]
+            for k in range(2000):
+                for i in range(1, 8):   # each column held, changed, or odd
+                    r = rng.random()
+                    if r < 0.3:
+                        v[i] = float(rng.normal(0.0, 10.0 ** rng.integers(-8, 12)))
+                    elif r < 0.5:
+                        v[i] = odd[int(rng.integers(0, len(odd)))]
+                v[0] = float(rng.uniform(0.0, 2e9))
+                values = tuple(v[:6]) + ((v[7],) if empirical else ()) + (k % 2,)
+                meas = v[6] if measured else None
+                rows.append((values, meas))
+                full = values[:6] + (meas,) + values[6:] if measured else values
+                want.append(_row_formats(measured, empirical) % full)
+            assert _csv_text(rows, empirical) == "".join(want)
+
+
 # --- bad input: nothing accepted, missing or wrong topics, namespaces ----------------------
 
 def _run(tmp_path, events, *flags, topics=None, params=None):
