@@ -10,6 +10,7 @@ import pytest
 
 from bb_friction_ros.ball_screw.simulation import plot_fig20, plot_fig21
 from bb_friction_ros.replay import plot_replay, _Series
+from bb_friction_ros.runner import Prediction
 
 PACKAGE = pathlib.Path(__file__).resolve().parent.parent / "bb_friction_ros"
 
@@ -31,9 +32,12 @@ def _steps(n=5, balls=4):
 
 
 def _predictions(n=5):
-    return [SimpleNamespace(stamp_s=0.01 * k, torque_total_nm=0.02, torque_b2b_nm=0.005,
-                            nut_velocity_rad_s=6.0, axial_load_n=1500.0,
-                            groups=(((0, 1), (1.0,)),)) for k in range(n)]
+    # replay's series reads every field of the runner's answer
+    return [Prediction(stamp_s=0.01 * k, nut_angle_rad=0.06 * k, nut_velocity_rad_s=6.0,
+                       axial_load_n=1500.0, torque_total_nm=0.02, torque_b2g_nm=0.015,
+                       torque_b2b_nm=0.005, torque_empirical_nm=0.0, converged=True,
+                       model_age_s=0.0, groups=(((0, 1), (1.0,)),), n_balls=4, stepped=True)
+            for k in range(n)]
 
 
 def test_plotting_keeps_the_callers_backend(caller_backend, tmp_path):
