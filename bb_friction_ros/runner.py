@@ -203,11 +203,13 @@ class _Answers:
         """
         s = self.schedule
         c = self._hold_cache
+        # what a held answer depends on besides the state: its sign (the averaged B2B
+        # torque also depends on the load and speed)
+        key = _sign(velocity_rad_s) if self.mean_b2b is None \
+            else (_sign(velocity_rad_s), load_n, velocity_rad_s)
         if c is not None and self._pending is None and self._live_terms is None \
                 and c[0] is self._state and c[1] is self._state_groups \
-                and c[2] is self._held and c[3] == s.direction \
-                and c[4] == (_sign(velocity_rad_s) if self.mean_b2b is None
-                             else (_sign(velocity_rad_s), load_n, velocity_rad_s)) \
+                and c[2] is self._held and c[3] == s.direction and c[4] == key \
                 and s.holds(stamp_s, angle_rad, velocity_rad_s, load_n):
             # what _process does for a HOLD without terms, the answer's fields cached
             stats = self.stats
@@ -231,9 +233,7 @@ class _Answers:
                 and self._live_terms is None and stats.late_samples == late \
                 and stats.skipped_steps == skipped:
             self._hold_cache = (
-                self._state, self._state_groups, self._held, s.direction,
-                _sign(velocity_rad_s) if self.mean_b2b is None
-                else (_sign(velocity_rad_s), load_n, velocity_rad_s),
+                self._state, self._state_groups, self._held, s.direction, key,
                 v[4:9], v[10:], stats.feedforward_zeroed - zeroed, stats.friction_cut - cut)
         return v
 

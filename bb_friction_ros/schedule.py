@@ -132,7 +132,8 @@ class Schedule:
             return _PLANS[FIRST]
         # A reversal (or a start/stop) is due at once: Coulomb friction flips there, and
         # a held torque of the old sign is the worst feed-forward a controller can get.
-        if not self._due(sample):
+        if not self._due(sample.stamp_s, sample.nut_angle_rad, sample.nut_velocity_rad_s,
+                         sample.axial_load_n):
             return _PLANS[HOLD]
         if not allow_step:
             return _PLANS[SKIP]
@@ -148,40 +149,36 @@ class Schedule:
         through ``ModelRunner.process_scalars``.  False for every other plan.
         """
         last = self.last_stamp
-        if last is None or self.stamp is None or stamp_s < last:
-            return False
-        if _sign(velocity_rad_s) != self.direction \
-                or abs(angle_rad - self.angle) \
-                >= self.step_rad * self.scale - ANGLE_RESOLUTION_RAD \
-                or stamp_s - self.stamp >= self.period_s * self.scale - STAMP_RESOLUTION_S:
-            return False
-        return stamp_s != last or load_n == self.load
+        return last is not None and self.stamp is not None and stamp_s >= last \
+            and not self._due(stamp_s, angle_rad, velocity_rad_s, load_n)
 
-    def _due_after(self, direction, angle_rad, stamp_s, later):
+    def _due_after(self, direction, angle_rad, stamp_s, velocity_next, angle_next,
+                   stamp_next):
         """
-        Return True if a step is due at ``later`` after one at (direction, angle, stamp).
+        Return True if a step is due at the next sample after one at (direction, angle, stamp).
 
         A change of direction, ``model_step_deg`` of rotation or the time floor, at the
         current scale.  One test for the model state (``_due``) and between two waiting
         inputs (``due_between``).
         """
-        return _sign(later.nut_velocity_rad_s) != direction \
-            or abs(later.nut_angle_rad - angle_rad) \
-            >= self.step_rad * self.scale - ANGLE_RESOLUTION_RAD \
-            or later.stamp_s - stamp_s >= self.period_s * self.scale - STAMP_RESOLUTION_S
+        return _sign(velocity_next) != direction \
+            or abs(angle_next - angle_rad) >= self.step_rad * self.scale - ANGLE_RESOLUTION_RAD \
+            or stamp_next - stamp_s >= self.period_s * self.scale - STAMP_RESOLUTION_S
 
-    def _due(self, sample):
-        """Whether a step is due for ``sample`` (a state exists, stamps not backwards)."""
-        if self._due_after(self.direction, self.angle, self.stamp, sample):
+    def _due(self, stamp_s, angle_rad, velocity_rad_s, load_n):
+        """Whether a step is due for a sample (a state exists, stamps not backwards)."""
+        if self._due_after(self.direction, self.angle, self.stamp, velocity_rad_s, angle_rad,
+                           stamp_s):
             return True
         # Stamps that do not advance leave the time floor no time: a load change then steps
         # at once, so a state of another load is never answered as fresh.
-        return sample.stamp_s == self.last_stamp and sample.axial_load_n != self.load
+        return stamp_s == self.last_stamp and load_n != self.load
 
     def due_between(self, sample, later):
         """Return True if a step at ``sample`` would leave one due again at ``later``."""
         return self._due_after(_sign(sample.nut_velocity_rad_s), sample.nut_angle_rad,
-                               sample.stamp_s, later)
+                               sample.stamp_s, later.nut_velocity_rad_s, later.nut_angle_rad,
+                               later.stamp_s)
 
     def _is_late(self, sample):
         """
