@@ -141,13 +141,15 @@ class _Series:
             buf.extend(row)
             buf.append(meas)
         self.rows += len(rows)
-        if len(buf) >= self.BUFFER_ROWS * len(self.COLUMNS):
-            buf.tofile(self._file)
-            del buf[:]
+        self._spill()
 
     def _append(self, row):
         self._buf.extend(row)
         self.rows += 1
+        self._spill()
+
+    def _spill(self):
+        """Write the buffer to the file once it holds BUFFER_ROWS rows."""
         if len(self._buf) >= self.BUFFER_ROWS * len(self.COLUMNS):
             self._buf.tofile(self._file)
             del self._buf[:]

@@ -37,15 +37,16 @@ _FEEDFORWARD_CDR = struct.Struct("<4sIII4xd")
 
 def prediction_cdr(pred, sec, nanosec, latency_s):
     """Return the CDR of friction_node's FrictionPrediction for ``pred`` (see node.py)."""
-    return _PREDICTION_CDR.pack(_CDR_LE, sec, nanosec, 1, b"\x00",
-                                *interface.prediction_values(pred, latency_s))
+    return prediction_values_cdr(prediction_values(pred), sec, nanosec, latency_s)
 
 
 def prediction_values_cdr(v, sec, nanosec, latency_s):
     """
     Return ``prediction_cdr`` of the Prediction whose fields are the tuple ``v``.
 
-    ``runner.ModelRunner.process_values``' answer, in ``Prediction``'s field order.
+    ``runner.ModelRunner.process_values``' answer, in ``Prediction``'s field order; the
+    message fields in ``interface.prediction_values``' order (replay's own answers never
+    become a Prediction).
     """
     return _PREDICTION_CDR.pack(_CDR_LE, sec, nanosec, 1, b"\x00", v[1], v[2], v[3], v[4],
                                 v[5], v[6], v[7], bool(v[8]), latency_s, v[9], len(v[10]),
@@ -169,8 +170,7 @@ class _OutputBag:
         pending.append((self._prediction, log_ns,
                         prediction_values_cdr(v, sec, nanosec, latency_s)))
         # the runner's safe value (held or 0 after a step that did not converge), as the node
-        pending.append((self._feedforward, log_ns, _FEEDFORWARD_CDR.pack(_CDR_LE, 0, 0, 1,
-                                                                         v[13])))
+        pending.append((self._feedforward, log_ns, feedforward_cdr(v[13])))
         self._answers += 1
         groups = v[10]
         if groups is not self._last_groups and groups != self._last_groups:
