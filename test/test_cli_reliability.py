@@ -131,8 +131,8 @@ def long_bag(tmp_path_factory):
 @pytest.mark.parametrize("args, limit", [
     (["replay", "BAG", "--no-progress"], FILE_SIZE_LIMIT_B),
     (["replay", "BAG", "--no-progress", "--no-bag"], FILE_SIZE_LIMIT_B),
-    (["discrepancy", "BAG", "--no-progress"], FILE_SIZE_LIMIT_B),            # the PNGs
-    (["discrepancy", "BAG", "--no-progress", "--no-plots"], 8 * 1024)],     # summary.json
+    (["discrepancy", "BAG", "--no-progress", "--no-physical"], FILE_SIZE_LIMIT_B),  # PNGs
+    (["discrepancy", "BAG", "--no-progress", "--no-plots", "--no-physical"], 8 * 1024)],
     ids=["replay", "replay-no-bag", "discrepancy", "discrepancy-no-plots"])
 def test_disk_full_mid_run_exits_2_naming_the_output_directory(args, limit, long_bag,
                                                                tmp_path):

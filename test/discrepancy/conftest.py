@@ -1,4 +1,13 @@
-"""Shared fixtures: one model baseline for every synthetic recording of these tests."""
+"""
+Shared fixtures: one model baseline for every synthetic recording of these tests.
+
+The model's own parameters are tried as candidates by default (about 20 model runs over a
+recording).  Tests of inputs, outputs, baselines and the empirical terms pass ``--no-physical``:
+what they check does not depend on the candidate set, and it keeps ``make test`` within its
+time.  The physical candidates are tested in test_physical.py, the default (on, or skipped
+without a model) in test_outputs.py, the end-to-end default run in test_discrepancy_inputs.py
+(``sqlite_out``) and on the measured drives in test_realdata.py.
+"""
 
 import numpy as np
 import pytest

@@ -45,7 +45,7 @@ def test_zero_baseline_model_file_replays_to_the_reported_rmse(base, tmp_path):
     """
     bag = _zero_baseline_bag(base, tmp_path)
     out = tmp_path / "o"
-    assert run_cli([bag, "--baseline", "zero", "--out", out, "--no-progress",
+    assert run_cli(["--no-physical", bag, "--baseline", "zero", "--out", out, "--no-progress",
                     "--no-plots"]) == 0
     s = json.loads((out / "summary.json").read_text())
     aug = out / "augmented.yaml"
@@ -69,17 +69,17 @@ def test_validate_refuses_mixed_baselines(pair, tmp_path, capsys):
     a = write_csv(tmp_path / "fit.csv", fit)
     zero = dataclasses.replace(val, torque_pred_nm=np.zeros(len(val)))
     b = write_csv(tmp_path / "val0.csv", zero)
-    assert run_cli([a, "--validate", b, "--out", tmp_path / "o", "--no-progress",
+    assert run_cli(["--no-physical", a, "--validate", b, "--out", tmp_path / "o", "--no-progress",
                     "--no-plots"]) == 2
     err = capsys.readouterr().err
     assert "different baselines" in err and str(a) in err and str(b) in err
     # the same pair with --baseline zero is one baseline: accepted, and said per recording
-    assert run_cli([a, "--validate", b, "--out", tmp_path / "z", "--no-progress",
+    assert run_cli(["--no-physical", a, "--validate", b, "--out", tmp_path / "z", "--no-progress",
                     "--no-plots", "--baseline", "zero"]) == 0
     s = json.loads((tmp_path / "z" / "summary.json").read_text())
     assert s["input"]["baseline"] == "zero" and s["validation"]["baseline"] == "zero"
     c = write_csv(tmp_path / "val.csv", val)
-    assert run_cli([a, "--validate", c, "--out", tmp_path / "m", "--no-progress",
+    assert run_cli(["--no-physical", a, "--validate", c, "--out", tmp_path / "m", "--no-progress",
                     "--no-plots"]) == 0
     s = json.loads((tmp_path / "m" / "summary.json").read_text())
     assert s["input"]["baseline"] == "model" and s["validation"]["baseline"] == "model"
@@ -92,11 +92,11 @@ def test_reused_prediction_with_terms_needs_their_config(base, tmp_path, capsys)
     """
     bag = _zero_baseline_bag(base, tmp_path)
     first = tmp_path / "first"
-    assert run_cli([bag, "--out", first, "--no-progress", "--no-plots"]) == 0
+    assert run_cli(["--no-physical", bag, "--out", first, "--no-progress", "--no-plots"]) == 0
     aug = first / "augmented.yaml"
     replay(bag, tmp_path / "rep", config=aug, progress=False)
     pred = tmp_path / "rep" / "prediction.csv"
-    assert run_cli([pred, "--out", tmp_path / "lost", "--no-plots"]) == 2
+    assert run_cli(["--no-physical", pred, "--out", tmp_path / "lost", "--no-plots"]) == 2
     err = capsys.readouterr().err
     assert "torque_empirical_nm" in err and "--config" in err
     other = tmp_path / "other.yaml"
@@ -104,9 +104,11 @@ def test_reused_prediction_with_terms_needs_their_config(base, tmp_path, capsys)
     raw["empirical_terms"][0]["params"] = {
         k: 1.5 * v for k, v in raw["empirical_terms"][0]["params"].items()}
     other.write_text(yaml.safe_dump(raw))
-    assert run_cli([pred, "--config", other, "--out", tmp_path / "wrong", "--no-plots"]) == 2
+    assert run_cli(["--no-physical",
+                    pred, "--config", other, "--out", tmp_path / "wrong", "--no-plots"]) == 2
     assert "another model file" in capsys.readouterr().err
-    assert run_cli([pred, "--config", aug, "--out", tmp_path / "kept", "--no-plots"]) == 0
+    assert run_cli(["--no-physical",
+                    pred, "--config", aug, "--out", tmp_path / "kept", "--no-plots"]) == 0
     kept = yaml.safe_load((tmp_path / "kept" / "augmented.yaml").read_text())
     assert kept["empirical_terms"][:2] == yaml.safe_load(aug.read_text())["empirical_terms"]
 

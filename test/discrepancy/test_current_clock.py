@@ -53,7 +53,7 @@ def _bag(base, path, latency_s, clock_offset_s=0.0, current_shift_s=0.0):
 
 
 def _run(bag, out):
-    assert run_cli([bag, "--out", out, "--no-progress", "--no-plots",
+    assert run_cli(["--no-physical", bag, "--out", out, "--no-progress", "--no-plots",
                     "--torque-constant-nm-per-a", K_NM_PER_A]) == 0
     return json.loads((out / "summary.json").read_text())
 
@@ -71,7 +71,7 @@ def test_recorder_latency_does_not_move_the_current(base, tmp_path, latency_s, c
 
 def test_current_recorded_at_another_time_is_refused_with_both_spans(base, tmp_path, capsys):
     bag = _bag(base, tmp_path / "c", 0.0, current_shift_s=1e4)
-    assert run_cli([bag, "--out", tmp_path / "o", "--no-progress", "--no-plots",
+    assert run_cli(["--no-physical", bag, "--out", tmp_path / "o", "--no-progress", "--no-plots",
                     "--torque-constant-nm-per-a", K_NM_PER_A]) == 2
     err = capsys.readouterr().err
     assert "do not overlap in log time" in err and "nut_state" in err

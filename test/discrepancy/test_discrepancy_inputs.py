@@ -84,7 +84,8 @@ def test_sqlite_bag_report_summary_and_augmented_config(recording, sqlite_out):
 
 def test_mcap_bag(recording, tmp_path, capsys):
     out = tmp_path / "out"
-    assert run_cli([recording["bags"]["mcap"], "--out", out, "--no-progress", "--no-plots",
+    assert run_cli(["--no-physical",
+                    recording["bags"]["mcap"], "--out", out, "--no-progress", "--no-plots",
                     "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     check_found(summary, recording["noise_rms"])
@@ -95,7 +96,7 @@ def test_csv_with_and_without_a_prediction(recording, tmp_path):
     rep = replay(recording["bags"]["sqlite3"], tmp_path / "replay", progress=False)
     assert rep["samples"] == len(recording["rec"])
     csv_path = tmp_path / "replay" / "prediction.csv"
-    assert run_cli([csv_path, "--out", tmp_path / "reuse", "--no-plots"]) == 0
+    assert run_cli(["--no-physical", csv_path, "--out", tmp_path / "reuse", "--no-plots"]) == 0
     reused = json.loads((tmp_path / "reuse" / "summary.json").read_text())
     check_found(reused, recording["noise_rms"])
     assert "reused" in reused["input"]["prediction_source"]
@@ -105,7 +106,7 @@ def test_csv_with_and_without_a_prediction(recording, tmp_path):
     cols = ["t_s", "nut_angle_rad", "nut_velocity_rad_s", "axial_load_n", "torque_meas_nm"]
     np.savetxt(bare, np.column_stack([rows[c] for c in cols]), delimiter=",",
                header=",".join(cols), comments="", fmt="%.17g")
-    assert run_cli([bare, "--out", tmp_path / "recomputed", "--no-plots"]) == 0
+    assert run_cli(["--no-physical", bare, "--out", tmp_path / "recomputed", "--no-plots"]) == 0
     recomputed = json.loads((tmp_path / "recomputed" / "summary.json").read_text())
     assert recomputed["input"]["prediction_source"].startswith("model")
     assert recomputed["rmse_before_nm"] == pytest.approx(reused["rmse_before_nm"], rel=1e-6)
@@ -124,7 +125,8 @@ def test_augmented_config_closes_the_gap_in_replay(recording, sqlite_out, tmp_pa
     expected = terms.torque_nm(rows["t_s"] - rows["t_s"][0], rows["nut_angle_rad"],
                                rows["nut_velocity_rad_s"], rows["axial_load_n"])
     assert np.allclose(rows["torque_empirical_nm"], expected, rtol=0, atol=1e-12)
-    assert run_cli([bag, "--config", augmented, "--out", tmp_path / "again", "--no-plots",
+    assert run_cli(["--no-physical",
+                    bag, "--config", augmented, "--out", tmp_path / "again", "--no-plots",
                     "--no-progress"]) == 0
     again = json.loads((tmp_path / "again" / "summary.json").read_text())
     assert again["verdict"] == "none"
@@ -135,7 +137,8 @@ def test_augmented_config_closes_the_gap_in_replay(recording, sqlite_out, tmp_pa
 def test_too_short_bag_exits_2_with_what_is_missing(recording, tmp_path, capsys):
     head = recording["events"][:150]
     write_events(tmp_path / "short", head)
-    assert run_cli([tmp_path / "short", "--out", tmp_path / "out", "--no-progress"]) == 2
+    assert run_cli(["--no-physical",
+                    tmp_path / "short", "--out", tmp_path / "out", "--no-progress"]) == 2
     err = capsys.readouterr().err
     assert "cannot tell" in err and "too short" in err
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
@@ -146,13 +149,13 @@ def test_too_short_bag_exits_2_with_what_is_missing(recording, tmp_path, capsys)
 def test_bag_without_measured_torque_and_missing_input(recording, tmp_path, capsys):
     events = [e for e in recording["events"] if e.kind != "measured_torque"]
     write_events(tmp_path / "nomeas", events)
-    assert run_cli([tmp_path / "nomeas", "--out", tmp_path / "o"]) == 2
+    assert run_cli(["--no-physical", tmp_path / "nomeas", "--out", tmp_path / "o"]) == 2
     assert "no measured torque" in capsys.readouterr().err
-    assert run_cli([tmp_path / "nope", "--out", tmp_path / "o"]) == 2
+    assert run_cli(["--no-physical", tmp_path / "nope", "--out", tmp_path / "o"]) == 2
     assert "no such bag or CSV" in capsys.readouterr().err
     bad = tmp_path / "bad.csv"
     bad.write_text("t_s,nut_angle_rad\n0,0\n")
-    assert run_cli([bad, "--out", tmp_path / "o"]) == 2
+    assert run_cli(["--no-physical", bad, "--out", tmp_path / "o"]) == 2
     assert "lacks column(s) nut_velocity_rad_s" in capsys.readouterr().err
 
 
@@ -161,5 +164,6 @@ def test_bad_settings_file_names_the_key(recording, tmp_path, capsys):
     settings.write_text("discrepancy:\n  max_terms: 0\n")
     csv_path = tmp_path / "x.csv"
     csv_path.write_text("t_s,nut_angle_rad,nut_velocity_rad_s,axial_load_n,torque_meas_nm\n")
-    assert run_cli([csv_path, "--out", tmp_path / "o", "--settings", settings]) == 2
+    assert run_cli(["--no-physical",
+                    csv_path, "--out", tmp_path / "o", "--settings", settings]) == 2
     assert "discrepancy.max_terms" in capsys.readouterr().out

@@ -65,7 +65,7 @@ def test_validate_writes_prediction_and_summary(pair, tmp_path, capsys):
     fit, val, hidden = pair
     a, b = write_csv(tmp_path / "fit.csv", fit), write_csv(tmp_path / "val.csv", val)
     out = tmp_path / "out"
-    assert run_cli([a, "--validate", b, "--out", out, "--no-progress"]) == 0
+    assert run_cli(["--no-physical", a, "--validate", b, "--out", out, "--no-progress"]) == 0
     s = json.loads((out / "summary.json").read_text())
     assert {e["name"] for e in s["effects"]} == {"seal_drag", "inertia"}
     v = s["validation"]
@@ -91,7 +91,8 @@ def test_validate_file_with_missing_columns_exits_2(pair, tmp_path, capsys):
     fit, val, _ = pair
     a = write_csv(tmp_path / "fit.csv", fit)
     b = write_csv(tmp_path / "val.csv", val, columns=COLUMNS[:4])
-    assert run_cli([a, "--validate", b, "--out", tmp_path / "o", "--no-progress"]) == 2
+    assert run_cli(["--no-physical",
+                    a, "--validate", b, "--out", tmp_path / "o", "--no-progress"]) == 2
     err = capsys.readouterr().err
     assert "val.csv" in err and "torque_meas_nm" in err
 
@@ -102,7 +103,7 @@ def test_non_finite_values_exit_2(pair, tmp_path, capsys):
     accel[7] = np.nan
     a = write_csv(tmp_path / "a.csv", fit, COLUMNS + ("nut_accel_rad_s2",),
                   extra={"nut_accel_rad_s2": accel})
-    assert run_cli([a, "--out", tmp_path / "o", "--no-progress"]) == 2
+    assert run_cli(["--no-physical", a, "--out", tmp_path / "o", "--no-progress"]) == 2
     assert "nut_accel_rad_s2 has non-finite values (first at line 9)" in capsys.readouterr().err
 
 
@@ -111,7 +112,8 @@ def test_acceleration_column_overrides_the_derived_one(pair, tmp_path):
     own = np.full(len(fit), 3.0)
     a = write_csv(tmp_path / "a.csv", fit, COLUMNS + ("nut_accel_rad_s2",),
                   extra={"nut_accel_rad_s2": own})
-    assert run_cli([a, "--out", tmp_path / "o", "--no-progress", "--no-plots"]) == 0
+    assert run_cli(["--no-physical",
+                    a, "--out", tmp_path / "o", "--no-progress", "--no-plots"]) == 0
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert s["acceleration"]["source"] == "csv column nut_accel_rad_s2"
     # a constant alpha is an offset in disguise: inertia is not named with it
@@ -124,7 +126,7 @@ def test_too_short_to_derive_acceleration_exits_2(pair, tmp_path, capsys):
     t = np.arange(n) * 0.02 + np.repeat(np.arange(math.ceil(n / 4)), 4)[:n] * 5.0
     rec = dataclasses.replace(fit, t_s=t)      # every 4 samples a 5 s gap: no segment of 5
     a = write_csv(tmp_path / "a.csv", rec)
-    assert run_cli([a, "--out", tmp_path / "o", "--no-progress"]) == 2
+    assert run_cli(["--no-physical", a, "--out", tmp_path / "o", "--no-progress"]) == 2
     err = capsys.readouterr().err
     assert "too short to derive the acceleration" in err
 
@@ -136,7 +138,7 @@ def test_rows_out_of_time_order_are_refused(pair, tmp_path, capsys):
     for name, order in (("shuffled", rng.permutation(len(fit))),
                         ("reversed", np.arange(len(fit))[::-1])):
         a = write_csv(tmp_path / f"{name}.csv", fit.take(order))
-        assert run_cli([a, "--out", tmp_path / name, "--no-progress",
+        assert run_cli(["--no-physical", a, "--out", tmp_path / name, "--no-progress",
                         "--recompute-prediction"]) == 2
         err = capsys.readouterr().err
         assert "rows are not in time order" in err and "sort the file by t_s" in err
@@ -148,7 +150,8 @@ def test_consecutive_runs_are_accepted_and_said(pair, tmp_path):
                       ("t_s", "t_run_s", "nut_angle_rad", "nut_velocity_rad_s",
                        "axial_load_n", "torque_meas_nm", "torque_pred_nm", "converged")))
     a = write_csv(tmp_path / "runs.csv", two)
-    assert run_cli([a, "--out", tmp_path / "o", "--no-progress", "--no-plots"]) == 0
+    assert run_cli(["--no-physical",
+                    a, "--out", tmp_path / "o", "--no-progress", "--no-plots"]) == 0
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert s["input"]["runs"] == 2
 
@@ -158,7 +161,8 @@ def test_csv_with_a_byte_order_mark(pair, tmp_path):
     fit, _, _ = pair
     a = write_csv(tmp_path / "bom.csv", fit, bom=True)
     assert a.read_bytes().startswith(b"\xef\xbb\xbf")
-    assert run_cli([a, "--out", tmp_path / "o", "--no-progress", "--no-plots"]) == 0
+    assert run_cli(["--no-physical",
+                    a, "--out", tmp_path / "o", "--no-progress", "--no-plots"]) == 0
 
 
 def test_fit_that_does_not_improve_the_held_out_part_is_none(base):
@@ -187,7 +191,8 @@ def test_bag_with_baseline_zero(base, tmp_path):
                             r.axial_load_n) + rng.normal(0, 0.003, len(r))
     bag = tmp_path / "bag"
     write_events(bag, with_measurement(base.events, meas), storage="sqlite3")
-    assert run_cli([bag, "--baseline", "zero", "--out", tmp_path / "o", "--no-progress"]) == 0
+    assert run_cli(["--no-physical",
+                    bag, "--baseline", "zero", "--out", tmp_path / "o", "--no-progress"]) == 0
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert s["identified_from_data_only"] and s["input"]["baseline"] == "zero"
     got = {e["name"]: e["params"] for e in s["effects"]}

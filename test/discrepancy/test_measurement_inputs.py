@@ -25,7 +25,7 @@ def test_csv_whose_time_never_advances_exits_2_naming_t_s(pair, tmp_path, capsys
     rec = dataclasses.replace(fit, t_s=np.full(len(fit), stamp))
     a = write_csv(tmp_path / "stuck.csv", rec)
     for extra in ([], ["--baseline", "zero"]):
-        assert run_cli([a, "--out", tmp_path / "o", "--no-progress", *extra]) == 2
+        assert run_cli(["--no-physical", a, "--out", tmp_path / "o", "--no-progress", *extra]) == 2
         err = capsys.readouterr().err
         assert "column t_s never advances" in err and str(a) in err
 
@@ -44,8 +44,9 @@ def test_motor_current_with_a_torque_constant_is_the_measured_torque(pair, tmp_p
     fit, _, _ = pair
     a = write_csv(tmp_path / "torque.csv", fit)
     b = _current_csv(tmp_path / "current.csv", fit)
-    assert run_cli([a, "--out", tmp_path / "t", "--no-progress", "--no-plots"]) == 0
-    assert run_cli([b, "--out", tmp_path / "c", "--no-progress", "--no-plots",
+    assert run_cli(["--no-physical",
+                    a, "--out", tmp_path / "t", "--no-progress", "--no-plots"]) == 0
+    assert run_cli(["--no-physical", b, "--out", tmp_path / "c", "--no-progress", "--no-plots",
                     "--torque-constant-nm-per-a", K_NM_PER_A]) == 0
     st = json.loads((tmp_path / "t" / "summary.json").read_text())
     sc = json.loads((tmp_path / "c" / "summary.json").read_text())
@@ -72,7 +73,8 @@ def test_current_input_errors_name_the_flag(pair, tmp_path, capsys, case, argv, 
         f = write_csv(tmp_path / "torque.csv", fit)
     else:
         f = _current_csv(tmp_path / "current.csv", fit)
-    assert run_cli([f, "--out", tmp_path / "o", "--no-progress", "--no-plots", *argv]) == 2
+    assert run_cli(["--no-physical",
+                    f, "--out", tmp_path / "o", "--no-progress", "--no-plots", *argv]) == 2
     assert needle in capsys.readouterr().err
 
 
@@ -108,14 +110,14 @@ def test_bag_motor_current_topic(base, tmp_path, capsys, storage):
             elif ev.kind == "axial_load":
                 out.write(conns["axial_load"], int(round(ev.stamp_s * 1e9)),
                           _wrench(st, ev.stamp_s, force_z=ev.value))
-    assert run_cli([bag, "--out", tmp_path / "o", "--no-progress", "--no-plots",
+    assert run_cli(["--no-physical", bag, "--out", tmp_path / "o", "--no-progress", "--no-plots",
                     "--torque-constant-nm-per-a", K_NM_PER_A]) == 0
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert [e["name"] for e in s["effects"]] == ["seal_drag"]
     assert s["effects"][0]["params"]["torque_nm"] == pytest.approx(0.03, rel=0.05)
     assert "topic motor_current (motor current) x 0.0625 N m/A" in \
         s["input"]["measured_torque_source"]
-    assert run_cli([bag, "--out", tmp_path / "p", "--no-progress", "--no-plots",
+    assert run_cli(["--no-physical", bag, "--out", tmp_path / "p", "--no-progress", "--no-plots",
                     "--torque-constant-nm-per-a", K_NM_PER_A, "--current-topic", "amps"]) == 2
     err = capsys.readouterr().err
     assert "no motor current: topic /amps is missing" in err and "--current-topic" in err

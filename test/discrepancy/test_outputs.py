@@ -33,12 +33,13 @@ def rec(base):
 def test_a_new_run_removes_the_earlier_runs_outputs(rec, tmp_path):
     out = tmp_path / "o"
     f = write_csv(tmp_path / "a.csv", rec)
-    assert run_cli([f, "--out", out, "--no-progress", "--validate", f]) == 0
+    assert run_cli(["--no-physical", f, "--out", out, "--no-progress", "--validate", f]) == 0
     assert (out / "augmented.yaml").is_file() and (out / "validation").is_dir()
     assert any(out.glob("*.png"))
     (out / "notes.txt").write_text("mine")          # never the user's own files
     short = write_csv(tmp_path / "short.csv", rec.take(np.arange(len(rec)) < 50))
-    assert run_cli([short, "--out", out, "--no-progress"]) == 2      # too short to tell
+    assert run_cli(["--no-physical",
+                    short, "--out", out, "--no-progress"]) == 2      # too short to tell
     s = json.loads((out / "summary.json").read_text())
     assert s["verdict"] == "none" and s["complete"] is True
     assert not (out / "augmented.yaml").exists() and not (out / "validation").exists()
@@ -51,14 +52,15 @@ def test_a_second_run_into_a_directory_in_use_is_refused(rec, tmp_path, capsys):
     out.mkdir()
     f = write_csv(tmp_path / "a.csv", rec)
     with _only_run_in(out):
-        assert run_cli([f, "--out", out, "--no-progress", "--no-plots"]) == 2
+        assert run_cli(["--no-physical", f, "--out", out, "--no-progress", "--no-plots"]) == 2
     assert "another bb-friction discrepancy is writing into it" in capsys.readouterr().err
-    assert run_cli([f, "--out", out, "--no-progress", "--no-plots"]) == 0
+    assert run_cli(["--no-physical", f, "--out", out, "--no-progress", "--no-plots"]) == 0
 
 
 def test_summary_is_written_last_and_says_complete(rec, tmp_path):
     out = tmp_path / "o"
-    assert run_cli([write_csv(tmp_path / "a.csv", rec), "--out", out, "--no-progress"]) == 0
+    assert run_cli(["--no-physical",
+                    write_csv(tmp_path / "a.csv", rec), "--out", out, "--no-progress"]) == 0
     files = sorted(out.iterdir(), key=lambda p: p.stat().st_mtime_ns)
     assert files[-1].name == "summary.json"
     assert json.loads(files[-1].read_text())["complete"] is True
@@ -73,7 +75,8 @@ def test_failure_while_writing_leaves_a_summary_that_says_incomplete(rec, tmp_pa
     monkeypatch.setattr(report, "write_report", full)
     out = tmp_path / "o"
     with pytest.raises(OSError):
-        run_cli([write_csv(tmp_path / "a.csv", rec), "--out", out, "--no-progress"])
+        run_cli(["--no-physical",
+                 write_csv(tmp_path / "a.csv", rec), "--out", out, "--no-progress"])
     s = json.loads((out / "summary.json").read_text())
     assert s["complete"] is False and "No space left" in s["error"]
 
@@ -111,7 +114,8 @@ def test_ctrl_c_inside_a_model_step_exits_130_without_a_traceback(rec, tmp_path,
         return step(self, *args, **kwargs)
     monkeypatch.setattr(whole_screw.WholeScrew, "step", interrupted_later)
     f = write_csv(tmp_path / "a.csv", dataclasses.replace(rec))
-    assert run_cli([f, "--out", tmp_path / "o", "--no-progress", "--recompute-prediction"]) \
+    assert run_cli(["--no-physical",
+                    f, "--out", tmp_path / "o", "--no-progress", "--recompute-prediction"]) \
         == 130
     err = capsys.readouterr().err
     assert "interrupted" in err and "Traceback" not in err

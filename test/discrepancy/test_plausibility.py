@@ -40,11 +40,11 @@ def _current_csv(path, rec, sign):
 
 def test_motor_current_of_the_opposite_sign_is_refused_naming_the_flag(rec, tmp_path, capsys):
     good = _current_csv(tmp_path / "good.csv", rec, 1.0)
-    assert run_cli([good, "--out", tmp_path / "g", "--no-progress", "--no-plots",
+    assert run_cli(["--no-physical", good, "--out", tmp_path / "g", "--no-progress", "--no-plots",
                     "--torque-constant-nm-per-a", K_NM_PER_A]) == 0
     capsys.readouterr()
     bad = _current_csv(tmp_path / "bad.csv", rec, -1.0)
-    assert run_cli([bad, "--out", tmp_path / "b", "--no-progress", "--no-plots",
+    assert run_cli(["--no-physical", bad, "--out", tmp_path / "b", "--no-progress", "--no-plots",
                     "--torque-constant-nm-per-a", K_NM_PER_A]) == 2
     err = capsys.readouterr().err
     assert "follows the motion" in err and "--torque-constant-nm-per-a" in err
@@ -56,7 +56,8 @@ def test_torque_column_of_the_opposite_sign_is_refused_naming_the_column(
         rec, tmp_path, capsys):
     neg = dataclasses.replace(rec, torque_meas_nm=-rec.torque_meas_nm)
     f = write_csv(tmp_path / "neg.csv", neg)
-    assert run_cli([f, "--out", tmp_path / "o", "--no-progress", "--no-plots"]) == 2
+    assert run_cli(["--no-physical",
+                    f, "--out", tmp_path / "o", "--no-progress", "--no-plots"]) == 2
     err = capsys.readouterr().err
     assert "follows the motion" in err and "torque_meas_nm" in err
 
@@ -84,7 +85,7 @@ def test_pure_noise_is_not_called_a_sign_error(rec):
 @pytest.mark.parametrize("k", ["1e-300", "1e100", "1e200"])
 def test_torque_constant_outside_a_motors_range_is_refused(rec, tmp_path, capsys, k):
     f = _current_csv(tmp_path / "c.csv", rec, 1.0)
-    assert run_cli([f, "--out", tmp_path / "o", "--no-progress", "--no-plots",
+    assert run_cli(["--no-physical", f, "--out", tmp_path / "o", "--no-progress", "--no-plots",
                     "--torque-constant-nm-per-a", k]) == 2
     err = capsys.readouterr().err
     assert "--torque-constant-nm-per-a" in err and "not a motor's torque constant" in err
@@ -94,7 +95,8 @@ def test_torque_constant_outside_a_motors_range_is_refused(rec, tmp_path, capsys
 def test_measured_torque_orders_of_magnitude_off_the_model_is_refused(rec, tmp_path, capsys):
     milli = dataclasses.replace(rec, torque_meas_nm=1000.0 * rec.torque_meas_nm)
     f = write_csv(tmp_path / "mNm.csv", milli)
-    assert run_cli([f, "--out", tmp_path / "o", "--no-progress", "--no-plots"]) == 2
+    assert run_cli(["--no-physical",
+                    f, "--out", tmp_path / "o", "--no-progress", "--no-plots"]) == 2
     err = capsys.readouterr().err
     assert "times the model's prediction" in err and "max_measured_scale_ratio" in err
 

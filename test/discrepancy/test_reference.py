@@ -51,7 +51,8 @@ def test_rigid_body_reference_on_the_held_out_part_and_the_validation(pair, tmp_
     fit, val, _ = pair
     a = write_csv(tmp_path / "fit.csv", fit)
     b = write_csv(tmp_path / "val.csv", val)
-    assert run_cli([a, "--validate", b, "--out", tmp_path / "o", "--no-progress"]) == 0
+    assert run_cli(["--no-physical",
+                    a, "--validate", b, "--out", tmp_path / "o", "--no-progress"]) == 0
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
     # recomputed here: OLS on [alpha, omega, sign omega, 1] with the run's alpha
     spec = {"accel_cutoff_hz": s["acceleration"]["cutoff_hz"]}
@@ -93,7 +94,8 @@ def test_worse_than_the_reference_is_said_first(pair, tmp_path):
     b = write_csv(tmp_path / "val.csv", val)
     settings = tmp_path / "s.yaml"
     settings.write_text("discrepancy:\n  max_terms: 1\n")
-    assert run_cli([a, "--validate", b, "--out", tmp_path / "o", "--settings", settings,
+    assert run_cli(["--no-physical",
+                    a, "--validate", b, "--out", tmp_path / "o", "--settings", settings,
                     "--no-progress", "--no-plots"]) == 0
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
     v = s["validation"]

@@ -60,7 +60,8 @@ def test_csv_with_torque_and_current_says_which_was_used(rec, tmp_path, flag, us
             "motor_current_a", "torque_pred_nm")
     f = write_csv(tmp_path / "both.csv", rec, columns=cols,
                   extra={"motor_current_a": rec.torque_meas_nm})
-    assert run_cli([f, "--out", tmp_path / "o", "--no-progress", "--no-plots", *flag]) == 0
+    assert run_cli(["--no-physical",
+                    f, "--out", tmp_path / "o", "--no-progress", "--no-plots", *flag]) == 0
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert any(used in w for w in s["warnings"])
 
@@ -94,7 +95,7 @@ def test_acceleration_cutoff_below_its_useful_range_is_refused(rec, tmp_path, ca
     settings = tmp_path / "s.yaml"
     settings.write_text("discrepancy:\n  accel_cutoff_hz: 5e-324\n")
     f = write_csv(tmp_path / "a.csv", rec)
-    assert run_cli([f, "--out", tmp_path / "o", "--settings", settings,
+    assert run_cli(["--no-physical", f, "--out", tmp_path / "o", "--settings", settings,
                     "--no-progress", "--no-plots"]) == 2
     assert "discrepancy.accel_cutoff_hz" in capsys.readouterr().out
     summary = tmp_path / "o" / "summary.json"           # marked partial, and JSON
