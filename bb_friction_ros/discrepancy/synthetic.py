@@ -15,6 +15,7 @@ the held-out last 30 % sees every regime the fit saw.
 import dataclasses
 import hashlib
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -99,7 +100,9 @@ def baseline(cfg, config_path=None, model_rate_hz=100.0, cache_dir=None):
                           converged=preds.converged.copy())
             if cache is not None:
                 cache.parent.mkdir(parents=True, exist_ok=True)
-                tmp = cache.with_suffix(".tmp.npz")
+                # the writer's own temporary name: test sessions run side by side share
+                # the cache, and a shared name would let one's write tear another's
+                tmp = cache.with_suffix(f".{os.getpid()}.tmp.npz")
                 np.savez(tmp, **stored)
                 tmp.replace(cache)
         return stored["pred"]
@@ -241,7 +244,7 @@ def model_config(directory, overrides, base=None):
     path = Path(directory) / f"model_{key}.yaml"
     if not path.is_file():
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(".tmp")
+        tmp = path.with_suffix(f".{os.getpid()}.tmp")     # as baseline's, one per writer
         write_model_file(tmp, merged, terms, "# synthetic model config (discrepancy tests)\n")
         tmp.replace(path)
     return path
