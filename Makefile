@@ -15,8 +15,13 @@ setup:
 	  "CPython 3.11, or run make PYTHON=/path/to/python3.11 ..." >&2; exit 1; }
 	@$(PYTHON) tools/setup_venv.py
 
+# The suite runs on TEST_WORKERS pytest-xdist workers (2: the cores of the machines it is
+# measured on; 0 runs it in the pytest process itself). Each worker is a session of its own: its own
+# ROS_DOMAIN_ID (test/conftest.py), its own temporary directories.
+TEST_WORKERS ?= 2
+
 test: setup
-	$(VENV)/bin/python -m pytest -q test
+	$(VENV)/bin/python -m pytest -q -n $(TEST_WORKERS) test
 
 # A ROS 2 workspace as a user lays it out (README, "Building in a ROS 2 workspace"): the
 # repository and the link to its interface package under build/ws/src, built and tested by
@@ -34,7 +39,7 @@ colcon-test: setup
 	cd $(WS) && $(COLCON_ENV) colcon build --event-handlers console_cohesion+ \
 		--cmake-args -DPython3_EXECUTABLE=$(VENV_ABS)/bin/python -DCMAKE_BUILD_TYPE=Release
 	cd $(WS) && $(COLCON_ENV) colcon test --return-code-on-test-failure \
-		--event-handlers console_cohesion+ --pytest-args -q
+		--event-handlers console_cohesion+ --pytest-args -q -n $(TEST_WORKERS)
 	cd $(WS) && $(COLCON_ENV) colcon test-result --verbose
 
 demo: setup

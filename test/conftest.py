@@ -2,8 +2,10 @@
 
 DDS isolation: every test session keeps its ROS 2 traffic on this machine
 (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``) and on its own ``ROS_DOMAIN_ID`` (1..101, from the
-pid), so parallel test runs on one machine do not hear each other. Both are set here, at import
-time, before any test can call ``rclpy.init()``; child processes started by tests inherit them.
+pid), so parallel test runs on one machine do not hear each other. The workers of one
+``pytest -n N`` run (pytest-xdist, as ``make test`` runs the suite) take consecutive ids from
+their controller's pid, so no two of them share a domain. Both are set here, at import time,
+before any test can call ``rclpy.init()``; child processes started by tests inherit them.
 
 Fixtures for tests that need ROS 2 (rclpy is imported lazily, so tests of the pure-Python physics
 core do not depend on it):
@@ -19,7 +21,16 @@ import pytest
 
 from bb_friction_ros.interface import local_domain_id
 
-ROS_DOMAIN_ID = local_domain_id()
+
+def session_domain_id(environ=os.environ):
+    """Return this test session's ROS domain id (an xdist worker's differs from its peers')."""
+    worker = environ.get("PYTEST_XDIST_WORKER")          # "gw0", "gw1", ... under pytest -n
+    if not worker:
+        return local_domain_id()
+    return local_domain_id(os.getppid() + int(worker.lstrip("gw")))
+
+
+ROS_DOMAIN_ID = session_domain_id()
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ['ROS_DOMAIN_ID'] = str(ROS_DOMAIN_ID)
 

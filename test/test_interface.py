@@ -87,6 +87,14 @@ def test_local_domain_id_is_off_the_default_domain():
     assert min(ids) == 1 and max(ids) == 101
 
 
+def test_the_workers_of_one_parallel_test_run_have_domains_of_their_own():
+    """pytest -n N: the workers of one run (one parent) never share a ROS domain."""
+    from conftest import session_domain_id
+    ids = [session_domain_id({"PYTEST_XDIST_WORKER": f"gw{k}"}) for k in range(8)]
+    assert len(set(ids)) == 8 and all(1 <= i <= 101 for i in ids)
+    assert session_domain_id({}) == interface.local_domain_id()
+
+
 def test_the_names_are_the_contract():
     """Topic names and types users script against (README): pinned here, once."""
     assert (interface.NUT_STATE, interface.AXIAL_LOAD, interface.MEASURED_TORQUE) == \
