@@ -348,9 +348,12 @@ class _Series:
             metas = [math.nan] * len(answers)
         for v, meas in zip(answers, metas):
             g = v[10]
-            if g is not groups:
-                groups = g
-                sizes = (len(g), max([len(x[0]) for x in g], default=0))
+            if g is not groups:     # every answer at 20 rev/s: a loop, not max's listcomp
+                groups, largest = g, 0
+                for x in g:
+                    if len(x[0]) > largest:
+                        largest = len(x[0])
+                sizes = (len(g), largest)
             buf.extend((v[0], v[4], v[6], v[2], v[3]) + sizes)
             buf.append(meas)
         self._groups, self._group_sizes = groups, sizes

@@ -287,10 +287,6 @@ class _Answers:
         return self._answer_values(sample, self._last_extra, False,
                                    abs(sample.stamp_s - self.schedule.stamp))
 
-    def _answer(self, sample, extra, stepped, model_age_s):
-        """Return the Prediction for ``sample`` from the current state, with its feedforward."""
-        return _prediction(*self._answer_values(sample, extra, stepped, model_age_s))
-
     def _answer_values(self, sample, extra, stepped, model_age_s):
         """Return ``_answer``'s Prediction as the tuple of its fields, in their order."""
         st = self._state
@@ -404,13 +400,17 @@ class _Steps:
         df = sample.axial_load_n - f0
         dt = sample.stamp_s - t0
         if hasattr(self.screw, "step_path"):
-            # the path's columns, as _step passes them (an InputSample per sub-step was a
-            # tenth of replay's work apart from the model at 20 rev/s)
-            rs = [i / n for i in range(1, n)]
+            # the path's columns, as _step passes them (an InputSample per sub-step, or a
+            # comprehension per column, was a cost per input at 20 rev/s)
+            angles, velocities, loads = path = ([], [], [])
+            for i in range(1, n):
+                r = i / n
+                angles.append(a0 + r * da)
+                velocities.append(w0 + r * dw)
+                loads.append(f0 + r * df)
             self.stats.substeps += n - 1
             s.stamp = t0 + (n - 1) / n * dt
-            return ([a0 + r * da for r in rs], [w0 + r * dw for r in rs],
-                    [f0 + r * df for r in rs])
+            return path
         for i in range(1, n):
             r = i / n
             self._step(InputSample(t0 + r * dt, a0 + r * da, w0 + r * dw, f0 + r * df),
