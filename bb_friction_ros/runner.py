@@ -444,10 +444,10 @@ class _Steps:
             res = self.screw.step(sample.nut_angle_rad, sample.nut_velocity_rad_s,
                                   sample.axial_load_n, dt_s, substep=not answered)
         self.stats.last_step_wall_s = took = (time.perf_counter() - t0) / points
-        for _ in range(points):
-            mean = self._step_time_s
-            self._step_time_s = took if mean is None \
-                else mean + STEP_TIME_WEIGHT * (took - mean)
+        mean = self._step_time_s
+        for _ in range(points):     # each step's share, in turn (in a local: a cost per step)
+            mean = took if mean is None else mean + STEP_TIME_WEIGHT * (took - mean)
+        self._step_time_s = mean
         self.stats.model_steps += points
         if not res.converged:
             self.stats.nonconverged_steps += 1
@@ -615,11 +615,8 @@ class ModelRunner(_Answers, _Steps):
         agree: the sample gets no prediction (None), it is counted as rejected
         ``model_error`` (message in ``stats.last_error``) and the state is reset.
         """
-        try:
-            return _prediction(*self._process(sample, allow_step))
-        except Exception as exc:   # any failure of the physics: counted, never fatal
-            self._model_error(exc, nut_state=True)
-            return None
+        v = self.process_values(sample, allow_step)
+        return None if v is None else _prediction(*v)
 
     def process_values(self, sample, allow_step=True):
         """
@@ -793,8 +790,11 @@ def build_runner(config_path, model_rate_hz, model_step_deg=None, max_model_step
 
 def _groups(groups):
     """Convert groups to hashable tuples ((ball ids), (forces N)) for change detection."""
-    # WholeScrew's groups are tuples of Python ints and floats already: taken as they are
-    # (converting them again per step was a tenth of replay's own CPU at 20 rev/s)
-    return tuple([(ids if type(ids) is tuple else tuple(int(i) for i in ids),
-                   forces if type(forces) is tuple else tuple(float(f) for f in forces))
-                  for ids, forces in groups])
+    # WholeScrew's are (ids, forces) tuples of Python ints and floats: taken as they are
+    for g in groups:
+        if type(g) is not tuple or len(g) != 2 or type(g[0]) is not tuple \
+                or type(g[1]) is not tuple:
+            return tuple([(ids if type(ids) is tuple else tuple(int(i) for i in ids),
+                           forces if type(forces) is tuple else tuple(float(f) for f in forces))
+                          for ids, forces in groups])
+    return tuple(groups)
