@@ -300,18 +300,16 @@ class _Sink:
         """Write the answers the aligner released: (answer, measured)."""
         if not done:
             return
-        append, isfinite = self.lines.append, math.isfinite
+        isfinite = math.isfinite
         sq_err, n_err = self.sq_err, self.n_err
-        metas = []
-        for v, meas in done:
-            meas = float(meas)
-            metas.append(meas)
-            append((v, meas))
+        rows = [(v, float(meas)) for v, meas in done]
+        for v, meas in rows:
             if isfinite(meas):
                 sq_err += (meas - v[4]) ** 2       # in order, as one by one
                 n_err += 1
         self.sq_err, self.n_err = sq_err, n_err
-        self.series.add_many([v for v, _ in done], metas)
+        self.lines += rows
+        self.series.add_rows(rows)
 
     def answered(self, v, stamp_ns_, log_ns, t_in):
         """
@@ -387,7 +385,7 @@ class _Sink:
         if finish and self.aligner is not None:
             self.emit(self.aligner.finish())
         if self.aligner is None and self.lines:
-            self.series.add_many([v for v, _ in self.lines])
+            self.series.add_rows(self.lines, measured=False)
         _write_lines(fh, self.lines, self.empirical)
         if self.outbag is not None:
             self.outbag.flush()
@@ -427,7 +425,9 @@ def _feed_items(block, runner, assembler, sink, fast, stamps, stamps_ns, values,
     process = runner.process_scalars
     items, kinds = block.items, block.kinds
     if outbag is not None:
-        copies, pending, publish = outbag.copies, outbag.pending, outbag.publish_values
+        pending, publish, get = outbag.pending, outbag.publish_values, outbag.copies.get
+        # each message's copy (its connection None: not copied), built in one pass
+        copied = [(get(c.id), t, raw) for c, t, raw in items]
     got = [] if deferred is not None else None
     i = -1
     try:
@@ -435,11 +435,8 @@ def _feed_items(block, runner, assembler, sink, fast, stamps, stamps_ns, values,
             # a message decoded one by one is decoded before its copy: a damaged one
             # stops the run before it reaches the output bag
             ev = block.event(i) if kind is not None and not fast[i] else None
-            if outbag is not None:
-                item = items[i]
-                out_conn = copies.get(item[0].id)
-                if out_conn is not None:
-                    pending.append((out_conn, item[1], item[2]))
+            if outbag is not None and copied[i][0] is not None:
+                pending.append(copied[i])
             if kind is None:
                 continue
             if fast[i]:

@@ -336,17 +336,17 @@ class _Series:
         self.rows += len(rows)
         self._spill()
 
-    def add_many(self, answers, metas=None):
+    def add_rows(self, rows, measured=True):
         """
-        ``add_values`` each of ``answers`` in order, with its measured torque in ``metas``.
+        ``add_values`` the answer of each (answer, measured torque) of ``rows``, in order.
 
-        The rows go straight into the buffer (NaN without ``metas``); the group sizes are
-        counted once per groups object, as ``add_values`` counts them.
+        The rows go straight into the buffer, the measured torque last (NaN without
+        ``measured``); the group sizes are counted once per groups object, as ``add_values``
+        counts them.
         """
         buf, groups, sizes = self._buf, self._groups, self._group_sizes
-        if metas is None:
-            metas = [math.nan] * len(answers)
-        for v, meas in zip(answers, metas):
+        nan = math.nan
+        for v, meas in rows:
             g = v[10]
             if g is not groups:     # every answer at 20 rev/s: a loop, not max's listcomp
                 groups, largest = g, 0
@@ -355,9 +355,9 @@ class _Series:
                         largest = len(x[0])
                 sizes = (len(g), largest)
             buf.extend((v[0], v[4], v[6], v[2], v[3]) + sizes)
-            buf.append(meas)
+            buf.append(meas if measured else nan)
         self._groups, self._group_sizes = groups, sizes
-        self.rows += len(answers)
+        self.rows += len(rows)
         self._spill()
 
     def _append(self, row):
