@@ -311,16 +311,6 @@ class _Sink:
         self.lines += rows
         self.series.add_rows(rows)
 
-    def answered(self, v, stamp_ns_, log_ns, t_in):
-        """
-        Write one answer (``t_in``: perf_counter when its input was taken).
-
-        ``v``: the Prediction's fields as a tuple (``ModelRunner.process_values``).
-        """
-        if self.outbag is not None:
-            self.outbag.publish_values(v, stamp_ns_, log_ns, time.perf_counter() - t_in)
-        self.take([v])
-
     def take(self, answers):
         """
         Queue ``answers`` (published already) for the CSV and series, in order.

@@ -327,15 +327,6 @@ class _Series:
         """Append a row held back by ``add`` with its measured torque."""
         self._append(row + (meas,))
 
-    def measure_many(self, rows, metas):
-        """``measure`` each of ``rows`` with its measured torque in ``metas``, in order."""
-        buf = self._buf
-        for row, meas in zip(rows, metas):
-            buf.extend(row)
-            buf.append(meas)
-        self.rows += len(rows)
-        self._spill()
-
     def add_rows(self, rows, measured=True):
         """
         ``add_values`` the answer of each (answer, measured torque) of ``rows``, in order.
