@@ -55,6 +55,9 @@ PLOT_FILE = "replay_torque_and_groups.png"
 SUMMARY_FILE = "summary.json"
 PREDICTION_FILE = "prediction.csv"
 BAG_DIR = "bag"
+# allocations between collections of the young generation while the bag streams
+# (``_long_lived_frozen``); Python's default is 700
+STREAM_GC_YOUNG = 10_000
 
 
 class NothingAccepted(BagError):
@@ -179,12 +182,19 @@ def _long_lived_frozen():
     The model, numba, rosbags' typestore and matplotlib are ~185 000 objects that live as
     long as the process; the stream allocates a few per message, and each collection they
     trigger walked them: 0.26 -> 0.17 s of CPU for a 6-second bag at 1 rev/s with the model
-    step taken out, 0.8 -> 0.6 s with it (measured at load 7-8; ``gc.freeze``).
+    step taken out, 0.8 -> 0.6 s with it (measured at load 7-8; ``gc.freeze``).  And the
+    young generation collected every ``STREAM_GC_YOUNG`` allocations, not 700: the stream's
+    objects (answers, CDR records, CSV rows) die young without cycles, and collecting them
+    every 700 was ~5 % of replay's own work at 1 and 20 rev/s (0.085 -> 0.080 s, 0.132 ->
+    0.125 s of a 6-second bag with the model step taken out, load ~1).
     """
     gc.freeze()
+    threshold = gc.get_threshold()
+    gc.set_threshold(max(threshold[0], STREAM_GC_YOUNG), *threshold[1:])
     try:
         yield
     finally:
+        gc.set_threshold(*threshold)
         gc.unfreeze()
 
 
