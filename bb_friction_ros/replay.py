@@ -56,8 +56,9 @@ SUMMARY_FILE = "summary.json"
 PREDICTION_FILE = "prediction.csv"
 BAG_DIR = "bag"
 # allocations between collections of the young generation while the bag streams
-# (``_long_lived_frozen``); Python's default is 700
-STREAM_GC_YOUNG = 10_000
+# (``_long_lived_frozen``); Python's default is 700.  Objects that die young are freed by
+# their reference counts whatever this is: it holds back only garbage in cycles.
+STREAM_GC_YOUNG = 50_000
 
 
 class NothingAccepted(BagError):
@@ -185,8 +186,8 @@ def _long_lived_frozen():
     step taken out, 0.8 -> 0.6 s with it (measured at load 7-8; ``gc.freeze``).  And the
     young generation collected every ``STREAM_GC_YOUNG`` allocations, not 700: the stream's
     objects (answers, CDR records, CSV rows) die young without cycles, and collecting them
-    every 700 was ~5 % of replay's own work at 1 and 20 rev/s (0.085 -> 0.080 s, 0.132 ->
-    0.125 s of a 6-second bag with the model step taken out, load ~1).
+    every 700 was 5-10 % of replay's own work (6-second bags, the model step taken out,
+    load ~1: 1.13x at 1 rev/s, 1.03x at 20 with 10 000; 50 000 another 1.04x at 20).
     """
     gc.freeze()
     threshold = gc.get_threshold()
