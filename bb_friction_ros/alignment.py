@@ -332,6 +332,13 @@ class MeasuredAligner:
                     break
         return [] if self._deferred else self._drain()
 
+    def add_to_batch(self, measured_stamps_s, values_nm, prediction_stamps_s, payloads):
+        """In a batch (``defer``): ``add_measured`` and ``add_prediction`` of each, in order."""
+        isfinite = math.isfinite
+        self._batch_m += [(t, v) for t, v in zip(measured_stamps_s, values_nm)
+                          if isfinite(t) and isfinite(v)]
+        self._batch_p += [[None, t, p] for t, p in zip(prediction_stamps_s, payloads)]
+
     def _take_measured(self, decided):
         for run, (stamp, value) in decided:
             if not self._meas or self._meas[-1].run != run:

@@ -68,9 +68,9 @@ def _mcap_write_batch(writer, batch, index):
     """
     storage = writer.storage
     n = len(batch)
-    ids = np.fromiter((item[0].id for item in batch), dtype=np.int64, count=n)
-    stamps = np.fromiter((item[1] for item in batch), dtype=np.uint64, count=n)
-    datas = [item[2] for item in batch]
+    conns, logs, datas = zip(*batch)        # the columns, transposed in C
+    ids = np.array([c.id for c in conns], dtype=np.int64)
+    stamps = np.fromiter(logs, dtype=np.uint64, count=n)
     sizes = np.fromiter(map(len, datas), dtype=np.int64, count=n)
     head = np.zeros(n, dtype=_MCAP_MESSAGE)
     head["op"] = _MCAP_MESSAGE_OP
@@ -89,7 +89,7 @@ def _mcap_write_batch(writer, batch, index):
                               > _MCAP_CHUNK_BYTES)
         j = i + int(over[0]) + 1 if len(over) else n
         parts = [None] * (2 * (j - i))
-        parts[0::2] = [heads[k * width:(k + 1) * width] for k in range(i, j)]
+        parts[0::2] = [heads[k:k + width] for k in range(i * width, j * width, width)]
         parts[1::2] = datas[i:j]
         # where each record starts in the chunk
         offsets = start + ends[i:j] - (width + sizes[i:j]) - (ends[i - 1] if i else 0)

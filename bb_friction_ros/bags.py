@@ -15,6 +15,7 @@ rosbags is imported on first use: it costs about 0.5 s.  The names of ``bag_type
 
 from bisect import bisect_left
 from collections import Counter
+from operator import itemgetter
 from pathlib import Path
 import struct
 
@@ -271,15 +272,16 @@ class BagInput:
 
     def _decode_block(self, items, nut_joint):
         before = {t: self.counts[t] for t in self.resolved}
-        self.counts.update(conn.topic for conn, _, _ in items)
+        topics = [conn.topic for conn, _, _ in items]
+        self.counts.update(topics)      # a list: Counter counts it in C
         block = Block(self, items, before)
-        rows, logs, kinds, resolved = {}, [], block.kinds, self.resolved
-        for i, (conn, log_ns, raw) in enumerate(items):
-            kind = resolved.get(conn.topic)
-            kinds.append(kind)
+        rows, logs, resolved = {}, [], self.resolved
+        block.kinds = kinds = [resolved.get(t) for t in topics]
+        for i, kind in enumerate(kinds):
             if kind is not None:
-                rows.setdefault((kind, len(raw)), []).append(i)
-                logs.append(log_ns)
+                item = items[i]
+                rows.setdefault((kind, len(item[2])), []).append(i)
+                logs.append(item[1])
         if logs:
             block.log_range = (min(logs), max(logs))
         for (kind, _), idx in rows.items():
@@ -598,6 +600,8 @@ def _decode_wrenches(items, idx, offset, block):
 
 _MCAP_RECORD = struct.Struct("<BQ").unpack_from        # opcode, record length
 _MCAP_MESSAGE_HEAD = struct.Struct("<HIQQ").unpack_from  # channel, sequence, log, publish
+# both at once: a message record's opcode, length and head (one call per record)
+_MCAP_MESSAGE_RECORD = struct.Struct("<BQHIQQ")
 
 
 def _mcap_storage(reader, connections):
@@ -694,16 +698,21 @@ def _mcap_chunk(mcap, chunk, cmap):
     buf = decompress(data, chunk.compression, chunk.uncompressed_size, crc)
     start, stop = chunk.message_start_time, chunk.message_end_time + 1
     record, head = _MCAP_RECORD, _MCAP_MESSAGE_HEAD
+    whole, whole_size = _MCAP_MESSAGE_RECORD.unpack_from, _MCAP_MESSAGE_RECORD.size
     out, pos, end = [], 0, len(buf)
     while pos < end:
-        op, length = record(buf, pos)
+        if pos + whole_size <= end:
+            op, length, channel, _, log_ns, _ = whole(buf, pos)
+        else:
+            (op, length), channel = record(buf, pos), None
         body, pos = pos + 9, pos + 9 + length
         if pos > end:
             return None
         if op == 0x05:
             if length < 22:
                 return None
-            channel, _, log_ns, _ = head(buf, body)
+            if channel is None:
+                channel, _, log_ns, _ = head(buf, body)
             if start <= log_ns < stop:
                 conn = cmap.get(channel)
                 if conn is not None:
@@ -712,8 +721,8 @@ def _mcap_chunk(mcap, chunk, cmap):
     return out
 
 
-def _log_time(item):
-    return item[1]
+# an item's log time, as a sort key: a C call (a Python key function was called per message)
+_log_time = itemgetter(1)
 
 
 def iter_events(path, topics=Topics()):

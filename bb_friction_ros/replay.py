@@ -21,7 +21,6 @@ recording's span in log time (when the recorder received the messages): one far-
 header stamp does not make a 6-second bag last 2e9 s.
 """
 
-from array import array
 from contextlib import contextmanager
 import csv
 import gc
@@ -41,11 +40,12 @@ from bb_friction_ros.bag_types import BagError, stamp_ns, Topics
 from bb_friction_ros.bags import BagInput
 from bb_friction_ros.config import BBFrictionError, bundled_config
 from bb_friction_ros.node_parameters import NodeParameters
-from bb_friction_ros.replay_outputs import (_CDR_LE, _FEEDFORWARD_CDR,  # noqa: F401
-                                            _GROUPS_HEAD_CDR, _OutputBag, _PREDICTION_CDR,
-                                            feedforward_cdr, FEEDFORWARD_TOPIC, groups_cdr,
-                                            GROUPS_TOPIC, OUTPUT_TOPICS, prediction_cdr,
-                                            PREDICTION_TOPIC)
+from bb_friction_ros.replay_outputs import (_CDR_LE, _csv_text, _csv_values,  # noqa: F401
+                                            _FEEDFORWARD_CDR, _GROUPS_HEAD_CDR, _OutputBag,
+                                            _PREDICTION_CDR, _row_formats, _Series,
+                                            _write_lines, csv_values, feedforward_cdr,
+                                            FEEDFORWARD_TOPIC, groups_cdr, GROUPS_TOPIC,
+                                            OUTPUT_TOPICS, prediction_cdr, PREDICTION_TOPIC)
 from bb_friction_ros.runner import build_runner, InputAssembler, InputError, \
     prediction_values
 
@@ -55,6 +55,10 @@ PLOT_FILE = "replay_torque_and_groups.png"
 SUMMARY_FILE = "summary.json"
 PREDICTION_FILE = "prediction.csv"
 BAG_DIR = "bag"
+# allocations between collections of the young generation while the bag streams
+# (``_long_lived_frozen``); Python's default is 700.  Objects that die young are freed by
+# their reference counts whatever this is: it holds back only garbage in cycles.
+STREAM_GC_YOUNG = 50_000
 
 
 class NothingAccepted(BagError):
@@ -92,116 +96,6 @@ def run_events(events, runner, assembler, progress=False):
             preds.append(pred)
     runner.settle()     # a step left to follow the last answer: counted as the node counts it
     return preds
-
-
-class _Series:
-    """
-    The plotted columns, spilled to a temporary file as the bag streams (constant memory).
-
-    A 10-minute 1 kHz bag has 600k samples; kept as Python objects they took most of
-    replay's 1.2 GB peak, and even packed they would be 38 MB.
-    """
-
-    COLUMNS = ("t", "torque", "b2b", "speed", "load", "groups", "largest", "meas")
-    BUFFER_ROWS = 8192
-
-    def __init__(self, measured):
-        import tempfile
-        self.measured = measured
-        self._file = tempfile.TemporaryFile()
-        self._buf = array("d")
-        self.rows = 0
-        self._groups, self._group_sizes = None, None
-
-    def add(self, pred):
-        """Append one prediction (its measurement comes later through ``measure``)."""
-        return self.add_values(prediction_values(pred))
-
-    def add_values(self, v):
-        """``add`` the Prediction whose fields are the tuple ``v`` (``process_values``)."""
-        groups = v[10]
-        if groups is not self._groups:
-            # the same groups answer every sample until the next step: counted once
-            self._groups = groups
-            self._group_sizes = (len(groups), max([len(g[0]) for g in groups], default=0))
-        row = (v[0], v[4], v[6], v[2], v[3]) + self._group_sizes
-        if self.measured:
-            return row
-        self._append(row + (math.nan,))
-        return None
-
-    def measure(self, row, meas):
-        """Append a row held back by ``add`` with its measured torque."""
-        self._append(row + (meas,))
-
-    def measure_many(self, rows, metas):
-        """``measure`` each of ``rows`` with its measured torque in ``metas``, in order."""
-        buf = self._buf
-        for row, meas in zip(rows, metas):
-            buf.extend(row)
-            buf.append(meas)
-        self.rows += len(rows)
-        self._spill()
-
-    def _append(self, row):
-        self._buf.extend(row)
-        self.rows += 1
-        self._spill()
-
-    def _spill(self):
-        """Write the buffer to the file once it holds BUFFER_ROWS rows."""
-        if len(self._buf) >= self.BUFFER_ROWS * len(self.COLUMNS):
-            self._buf.tofile(self._file)
-            del self._buf[:]
-
-    def chunks(self):
-        """Yield the rows written so far as (n, 8) float64 arrays, a buffer at a time."""
-        self._buf.tofile(self._file)
-        del self._buf[:]
-        self._file.flush()
-        self._file.seek(0)
-        width = len(self.COLUMNS)
-        while True:
-            block = np.fromfile(self._file, dtype=np.float64,
-                                count=self.BUFFER_ROWS * width)
-            if block.size == 0:
-                return
-            yield block.reshape(-1, width)
-
-    def decimated(self, buckets=2000):
-        """
-        Return the columns min/max-decimated to ``buckets`` (x repeated twice per bucket).
-
-        At the figure's resolution a min/max envelope draws what every point would, from a
-        bounded number of points.
-        """
-        per = max(1, math.ceil(self.rows / buckets))
-        if per == 1:
-            data = np.concatenate(list(self.chunks()) or [np.zeros((0, 8))])
-            return {k: data[:, i] for i, k in enumerate(self.COLUMNS)}
-        lo, hi, xs = [], [], []
-        carry = np.zeros((0, len(self.COLUMNS)))
-        for block in self.chunks():
-            block = np.concatenate([carry, block])
-            n = (len(block) // per) * per
-            carry = block[n:].copy()
-            if n:
-                b = block[:n].reshape(-1, per, len(self.COLUMNS))
-                lo.append(np.nanmin(b, axis=1) if self.measured else b.min(axis=1))
-                hi.append(np.nanmax(b, axis=1) if self.measured else b.max(axis=1))
-                xs.append(b[:, 0, 0].copy())     # a view would keep every block alive
-        if len(carry):
-            lo.append(np.nanmin(carry, axis=0)[None] if self.measured else carry.min(0)[None])
-            hi.append(np.nanmax(carry, axis=0)[None] if self.measured else carry.max(0)[None])
-            xs.append(carry[:1, 0])
-        lo, hi, x = np.concatenate(lo), np.concatenate(hi), np.concatenate(xs)
-        out = {k: np.column_stack([lo[:, i], hi[:, i]]).ravel()
-               for i, k in enumerate(self.COLUMNS)}
-        out["t"] = np.repeat(x, 2)
-        return out
-
-    def close(self):
-        self._file.close()
 
 
 def csv_header(measured, empirical):
@@ -289,12 +183,19 @@ def _long_lived_frozen():
     The model, numba, rosbags' typestore and matplotlib are ~185 000 objects that live as
     long as the process; the stream allocates a few per message, and each collection they
     trigger walked them: 0.26 -> 0.17 s of CPU for a 6-second bag at 1 rev/s with the model
-    step taken out, 0.8 -> 0.6 s with it (measured at load 7-8; ``gc.freeze``).
+    step taken out, 0.8 -> 0.6 s with it (measured at load 7-8; ``gc.freeze``).  And the
+    young generation collected every ``STREAM_GC_YOUNG`` allocations, not 700: the stream's
+    objects (answers, CDR records, CSV rows) die young without cycles, and collecting them
+    every 700 was 5-10 % of replay's own work (6-second bags, the model step taken out,
+    load ~1: 1.13x at 1 rev/s, 1.03x at 20 with 10 000; 50 000 another 1.04x at 20).
     """
     gc.freeze()
+    threshold = gc.get_threshold()
+    gc.set_threshold(max(threshold[0], STREAM_GC_YOUNG), *threshold[1:])
     try:
         yield
     finally:
+        gc.set_threshold(*threshold)
         gc.unfreeze()
 
 
@@ -388,82 +289,14 @@ def _remove_outputs(out):
         own_bag.unlink()
 
 
-def _row_formats(measured, empirical):
-    """
-    Return the %-formats of a prediction.csv line: (before, after) the measured column.
-
-    Byte for byte what csv.writer wrote (floats as repr, which never need quoting, the stamp
-    with 9 decimals, CRLF): one %-format per row instead of six repr calls and a writerow.
-    """
-    head = "%.9f,%r,%r,%r,%r,%r"
-    tail = (",%r" if empirical else "") + ",%d\r\n"
-    return head + (",%r" if measured else "") + tail
-
-
-def csv_values(pred, empirical):
-    """Return the prediction.csv values of ``pred`` but the measurement (``_row_formats``)."""
-    return _csv_values(prediction_values(pred), empirical)
-
-
-def _csv_values(v, empirical):
-    """``csv_values`` of the Prediction whose fields are the tuple ``v``."""
-    if empirical:
-        return (v[0], v[1], v[2], v[3], v[4], v[6], v[7], int(bool(v[8])))
-    return (v[0], v[1], v[2], v[3], v[4], v[6], int(bool(v[8])))
-
-
-def _write_lines(fh, lines, empirical=False):
-    """
-    Write the queued prediction.csv rows; taken off the queue first, so never twice.
-
-    ``lines``: (csv values, measured torque or None without the column), ``_csv_text``.
-    """
-    rows = lines[:]
-    lines.clear()
-    fh.write(_csv_text(rows, empirical))
-
-
-def _csv_text(rows, empirical):
-    """
-    Return prediction.csv lines of ``rows`` (csv values, measured torque or None).
-
-    Byte for byte ``_row_formats``' lines.  The speed, the load and the model's torques
-    repeat from row to row (the load arrives at a tenth of the nut's rate, a state answers
-    every input until the next step): a float equal to the row before's, and of the same
-    type, is written with that row's text; repr, which finds the shortest exact digits,
-    was half of the CSV's cost.  Zero is always formatted (0.0 and -0.0 are equal), and
-    anything but a Python float (numpy's repr names its type).
-    """
-    out = []
-    append = out.append
-    lw = lf = lt = lb = None
-    sw = sf = st = sb = ""
-    tail = (",%r" if empirical else "") + ",%d\r\n"
-    with_meas = "%.9f,%r,%s,%s,%s,%s,%r" + tail
-    without = "%.9f,%r,%s,%s,%s,%s" + tail
-    for v, meas in rows:
-        w, f, t, b = v[2], v[3], v[4], v[5]
-        if w != lw or w == 0.0 or type(w) is not float:
-            lw, sw = w if type(w) is float else None, repr(w)
-        if f != lf or f == 0.0 or type(f) is not float:
-            lf, sf = f if type(f) is float else None, repr(f)
-        if t != lt or t == 0.0 or type(t) is not float:
-            lt, st = t if type(t) is float else None, repr(t)
-        if b != lb or b == 0.0 or type(b) is not float:
-            lb, sb = b if type(b) is float else None, repr(b)
-        if meas is None:
-            append(without % ((v[0], v[1], sw, sf, st, sb) + v[6:]))
-        else:
-            append(with_meas % ((v[0], v[1], sw, sf, st, sb, meas) + v[6:]))
-    return "".join(out)
-
-
 class _Sink:
     """
     What the stream writes per answer: prediction.csv, the plotted series, the output bag.
 
     And the RMSE against the measured torque: each answer is held until its measurement
-    when the bag records one (``MeasuredAligner``).
+    when the bag records one (``MeasuredAligner``).  An answer travels as the tuple of its
+    fields (``ModelRunner.process_values``) to the CSV and the series, which take their
+    columns from it a block at a time.
     """
 
     def __init__(self, measured, empirical, outbag):
@@ -475,38 +308,32 @@ class _Sink:
         self.sq_err, self.n_err = 0.0, 0
 
     def emit(self, done):
-        """Write the answers the aligner released: ((csv values, series row), measured)."""
+        """Write the answers the aligner released: (answer, measured)."""
         if not done:
             return
-        append, isfinite = self.lines.append, math.isfinite
+        isfinite = math.isfinite
         sq_err, n_err = self.sq_err, self.n_err
-        metas = []
-        for (values, _), meas in done:
-            meas = float(meas)
-            metas.append(meas)
-            append((values, meas))
+        rows = [(v, float(meas)) for v, meas in done]
+        for v, meas in rows:
             if isfinite(meas):
-                sq_err += (meas - values[4]) ** 2       # in order, as one by one
+                sq_err += (meas - v[4]) ** 2       # in order, as one by one
                 n_err += 1
         self.sq_err, self.n_err = sq_err, n_err
-        self.series.measure_many([payload[1] for payload, _ in done], metas)
+        self.lines += rows
+        self.series.add_rows(rows)
 
-    def answered(self, v, stamp_ns_, log_ns, t_in):
+    def take(self, answers):
         """
-        Write one answer (``t_in``: perf_counter when its input was taken).
+        Queue ``answers`` (published already) for the CSV and series, in order.
 
-        ``v``: the Prediction's fields as a tuple (``ModelRunner.process_values``).
+        Without a measured torque each is written as it comes; with one, each waits in
+        the aligner for its measurement.
         """
-        if self.outbag is not None:
-            self.outbag.publish_values(v, stamp_ns_, log_ns, time.perf_counter() - t_in)
-        row = self.series.add_values(v)
-        values = _csv_values(v, self.empirical)
         if self.aligner is None:
-            self.lines.append((values, None))
-        else:
-            done = self.aligner.add_prediction(v[0], (values, row))
-            if done:
-                self.emit(done)
+            self.lines += [(v, None) for v in answers]
+            return
+        for v in answers:
+            self.emit(self.aligner.add_prediction(v[0], v))
 
     def measure(self, stamp_s, value):
         """Take one measured torque (aligned with the answers by stamp)."""
@@ -521,14 +348,33 @@ class _Sink:
 
         Its measured torques and nut states must all be decoded (``fast``) for their
         stamps to be known here (``MeasuredAligner.defer``); ``release`` ends the block.
+        Returns the indices of the block's measured torques if it deferred (the stream
+        then hands them over together, ``measure_deferred``), else None.  Without a
+        measured torque nothing waits: () .
         """
         if self.aligner is None:
-            return
+            return ()
         kinds = block.kinds
         meas = [i for i, kind in enumerate(kinds) if kind == "measured_torque"]
         nut = [i for i, kind in enumerate(kinds) if kind == "nut_state"]
-        if all(fast[i] for i in meas) and all(fast[i] for i in nut):
-            self.aligner.defer([stamps[i] for i in meas], [stamps[i] for i in nut])
+        if all(fast[i] for i in meas) and all(fast[i] for i in nut) \
+                and self.aligner.defer([stamps[i] for i in meas], [stamps[i] for i in nut]):
+            return meas
+        return None
+
+    def take_deferred(self, block, idx, answers):
+        """
+        ``take`` the ``answers`` of ``block`` and its measured torques at ``idx`` (``defer``).
+
+        A deferred aligner only queues both until ``release``: one call for the block
+        instead of two per sample.
+        """
+        if self.aligner is None:
+            self.take(answers)
+            return
+        idx = np.asarray(idx, dtype=np.intp)
+        self.aligner.add_to_batch(block.stamp_s[idx].tolist(), block.value[idx].tolist(),
+                                  [v[0] for v in answers], answers)
 
     def release(self):
         """Write the answers the aligner held back during a block (``defer``)."""
@@ -539,6 +385,8 @@ class _Sink:
         """Write what is queued (``finish``: the aligner's held answers too)."""
         if finish and self.aligner is not None:
             self.emit(self.aligner.finish())
+        if self.aligner is None and self.lines:
+            self.series.add_rows(self.lines, measured=False)
         _write_lines(fh, self.lines, self.empirical)
         if self.outbag is not None:
             self.outbag.flush()
@@ -555,59 +403,86 @@ def _feed_block(block, runner, assembler, sink):
     fast = block.fast.tolist()
     stamps, stamps_ns = block.stamp_s.tolist(), block.stamp_ns.tolist()
     values, velocities = block.value.tolist(), block.velocity.tolist()
-    sink.defer(block, stamps, fast)
+    deferred = sink.defer(block, stamps, fast)
     try:
         _feed_items(block, runner, assembler, sink, fast, stamps, stamps_ns, values,
-                    velocities)
+                    velocities, deferred)
     finally:
         sink.release()      # what a failure leaves answered is written too
 
 
 def _feed_items(block, runner, assembler, sink, fast, stamps, stamps_ns, values,
-                velocities):
-    """Feed the messages of ``block`` one by one (``_feed_block``'s loop)."""
+                velocities, deferred):
+    """
+    Feed the messages of ``block`` one by one (``_feed_block``'s loop).
+
+    ``deferred``: the indices of the block's measured torques if they wait for the block's
+    end anyway (``_Sink.defer``; () without any), else None.  The block's answers are then
+    handed to the sink together at its end (or where a failure stops it), with the
+    measured torques before that point: the same rows as one by one.
+    """
     outbag = sink.outbag
     clock = time.perf_counter
+    process = runner.process_scalars
     items, kinds = block.items, block.kinds
     if outbag is not None:
-        copies, pending = outbag.copies, outbag.pending
-    for i, kind in enumerate(kinds):
-        # a message decoded one by one is decoded before its copy: a damaged one
-        # stops the run before it reaches the output bag
-        ev = block.event(i) if kind is not None and not fast[i] else None
-        if outbag is not None:
-            item = items[i]
-            out_conn = copies.get(item[0].id)
-            if out_conn is not None:
-                pending.append((out_conn, item[1], item[2]))
-        if kind is None:
-            continue
-        if fast[i]:
-            if kind == "measured_torque":
-                sink.measure(stamps[i], values[i])
+        pending, publish, get = outbag.pending, outbag.publish_values, outbag.copies.get
+        # each message's copy (its connection None: not copied), built in one pass
+        copied = [(get(c.id), t, raw) for c, t, raw in items]
+    got = [] if deferred is not None else None
+    i = -1
+    try:
+        for i, kind in enumerate(kinds):
+            # a message decoded one by one is decoded before its copy: a damaged one
+            # stops the run before it reaches the output bag
+            ev = block.event(i) if kind is not None and not fast[i] else None
+            if outbag is not None and copied[i][0] is not None:
+                pending.append(copied[i])
+            if kind is None:
                 continue
-            if kind == "axial_load":
-                try:
-                    assembler.on_axial_load(values[i])
-                except InputError as err:
-                    runner.reject(err.reason)
+            if fast[i]:
+                if kind == "measured_torque":
+                    if got is None:
+                        sink.measure(stamps[i], values[i])
+                    continue
+                if kind == "axial_load":
+                    try:
+                        assembler.on_axial_load(values[i])
+                    except InputError as err:
+                        runner.reject(err.reason)
+                    continue
+                load = assembler.load_n
+                if load is not None:
+                    t_in = clock()
+                    answer = process(stamps[i], values[i], velocities[i], load)
+                    if answer is not None:
+                        if outbag is not None:
+                            publish(answer, stamps_ns[i], items[i][1], clock() - t_in)
+                        if got is None:
+                            sink.take((answer,))
+                        else:
+                            got.append(answer)
+                    continue
+            if ev is None:      # a nut_state before any load: rejected with its reason
+                ev = block.event(i)
+            if ev.kind == "measured_torque":
+                sink.measure(ev.stamp_s, ev.value)
                 continue
-            if assembler.load_n is not None:
-                t_in = clock()
-                answer = runner.process_scalars(stamps[i], values[i], velocities[i],
-                                                assembler.load_n)
-                if answer is not None:
-                    sink.answered(answer, stamps_ns[i], items[i][1], t_in)
-                continue
-        if ev is None:      # a nut_state before any load: rejected with its reason
-            ev = block.event(i)
-        if ev.kind == "measured_torque":
-            sink.measure(ev.stamp_s, ev.value)
-            continue
-        t_in = clock()
-        pred = feed_event(ev, runner, assembler)
-        if pred is not None:
-            sink.answered(prediction_values(pred), stamp_ns(ev), items[i][1], t_in)
+            t_in = clock()
+            pred = feed_event(ev, runner, assembler)
+            if pred is not None:
+                v = prediction_values(pred)
+                if outbag is not None:
+                    publish(v, stamp_ns(ev), items[i][1], clock() - t_in)
+                if got is None:
+                    sink.take((v,))
+                else:
+                    got.append(v)
+        i = len(kinds)
+    finally:
+        if got is not None:
+            # what was fed before the end (or the failure at message i)
+            sink.take_deferred(block, [k for k in deferred if k < i], got)
 
 
 def _stream(src, runner, assembler, out, measured, empirical, outbag, progress,

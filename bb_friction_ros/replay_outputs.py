@@ -1,14 +1,20 @@
 """
-What replay writes beside prediction.csv: friction_node's output topics in ``bag/``.
+What replay writes per answer: prediction.csv's lines, the plotted series, ``bag/``.
 
-The node's messages are packed as CDR directly (``prediction_cdr``, ``feedforward_cdr``,
-``groups_cdr``; test_replay checks every byte against rosbags' own serialisation) and
-queued with the copied inputs in output order (``_OutputBag``).
+The CSV lines are %-formatted from the answers' tuples (``_csv_text``), the plotted columns
+spilled to a temporary file (``_Series``).  The node's messages are packed as CDR directly
+(``prediction_cdr``, ``feedforward_cdr``, ``groups_cdr``; test_replay checks every byte
+against rosbags' own serialisation) and queued with the copied inputs in output order
+(``_OutputBag``).
 """
 
+from array import array
 import functools
+import math
 import shutil
 import struct
+
+import numpy as np
 
 from bb_friction_ros import interface
 from bb_friction_ros.bag_types import friction_typestore
@@ -137,6 +143,7 @@ class _OutputBag:
             else:
                 self.copies[conn.id] = self.bag.copy_connection(conn)
         self._last_groups = None
+        self._ff_value = self._ff_cdr = None     # the last feedforward packed, and its CDR
         self.pending = []
         self._answers = self._group_changes = 0
 
@@ -167,10 +174,16 @@ class _OutputBag:
         """``publish`` the Prediction whose fields are the tuple ``v`` (``process_values``)."""
         sec, nanosec = divmod(stamp, 1_000_000_000)
         pending = self.pending
-        pending.append((self._prediction, log_ns,
-                        prediction_values_cdr(v, sec, nanosec, latency_s)))
-        # the runner's safe value (held or 0 after a step that did not converge), as the node
-        pending.append((self._feedforward, log_ns, feedforward_cdr(v[13])))
+        # prediction_values_cdr, inline (a call per answer)
+        pending.append((self._prediction, log_ns, _PREDICTION_CDR.pack(
+            _CDR_LE, sec, nanosec, 1, b"\x00", v[1], v[2], v[3], v[4], v[5], v[6], v[7],
+            bool(v[8]), latency_s, v[9], len(v[10]), v[15], bool(v[16]), int(v[17]), v[18])))
+        # the runner's safe value (held or 0 after a step that did not converge), as the node;
+        # the same float object as the answer before's (a held state's) packs the same bytes
+        ff = v[13]
+        if ff is not self._ff_value:
+            self._ff_value, self._ff_cdr = ff, feedforward_cdr(ff)
+        pending.append((self._feedforward, log_ns, self._ff_cdr))
         self._answers += 1
         groups = v[10]
         if groups is not self._last_groups and groups != self._last_groups:
@@ -198,3 +211,202 @@ class _OutputBag:
             self.close()
         except Exception:   # the error that stopped the run is the one reported
             pass
+
+
+def _row_formats(measured, empirical):
+    """
+    Return the %-formats of a prediction.csv line: (before, after) the measured column.
+
+    Byte for byte what csv.writer wrote (floats as repr, which never need quoting, the stamp
+    with 9 decimals, CRLF): one %-format per row instead of six repr calls and a writerow.
+    """
+    head = "%.9f,%r,%r,%r,%r,%r"
+    tail = (",%r" if empirical else "") + ",%d\r\n"
+    return head + (",%r" if measured else "") + tail
+
+
+def csv_values(pred, empirical):
+    """Return the prediction.csv values of ``pred`` but the measurement (``_row_formats``)."""
+    return _csv_values(prediction_values(pred), empirical)
+
+
+def _csv_values(v, empirical):
+    """``csv_values`` of the Prediction whose fields are the tuple ``v``."""
+    if empirical:
+        return (v[0], v[1], v[2], v[3], v[4], v[6], v[7], int(bool(v[8])))
+    return (v[0], v[1], v[2], v[3], v[4], v[6], int(bool(v[8])))
+
+
+def _write_lines(fh, lines, empirical=False):
+    """
+    Write the queued prediction.csv rows; taken off the queue first, so never twice.
+
+    ``lines``: (answer, measured torque or None without the column), ``_csv_text``.
+    """
+    rows = lines[:]
+    lines.clear()
+    fh.write(_csv_text(rows, empirical))
+
+
+def _csv_text(rows, empirical):
+    """
+    Return prediction.csv lines of ``rows`` (answer, measured torque or None).
+
+    An answer: the Prediction's fields as a tuple (``ModelRunner.process_values``); its
+    line holds ``_csv_values`` (``_row_formats``), byte for byte.  The speed, the load
+    and the model's torques repeat from row to row (the load arrives at a tenth of the
+    nut's rate, a state answers every input until the next step): a float equal to the
+    row before's, and of the same type, is written with that row's text; repr, which finds
+    the shortest exact digits, was half of the CSV's cost.  Zero is always formatted (0.0
+    and -0.0 are equal), and anything but a Python float (numpy's repr names its type).
+    """
+    out = []
+    append = out.append
+    lw = lf = lt = lb = None
+    sw = sf = st = sb = ""
+    with_meas = "%.9f,%r,%s,%s,%s,%s,%r" + (",%r,%d\r\n" if empirical else ",%d\r\n")
+    without = "%.9f,%r,%s,%s,%s,%s" + (",%r,%d\r\n" if empirical else ",%d\r\n")
+    for v, meas in rows:
+        w, f, t, b = v[2], v[3], v[4], v[6]
+        if w != lw or w == 0.0 or type(w) is not float:
+            lw, sw = w if type(w) is float else None, repr(w)
+        if f != lf or f == 0.0 or type(f) is not float:
+            lf, sf = f if type(f) is float else None, repr(f)
+        if t != lt or t == 0.0 or type(t) is not float:
+            lt, st = t if type(t) is float else None, repr(t)
+        if b != lb or b == 0.0 or type(b) is not float:
+            lb, sb = b if type(b) is float else None, repr(b)
+        converged = 1 if v[8] else 0       # int(bool(...)), as _csv_values
+        if meas is None:
+            append(without % ((v[0], v[1], sw, sf, st, sb, v[7], converged) if empirical
+                              else (v[0], v[1], sw, sf, st, sb, converged)))
+        else:
+            append(with_meas % ((v[0], v[1], sw, sf, st, sb, meas, v[7], converged)
+                                if empirical else (v[0], v[1], sw, sf, st, sb, meas,
+                                                   converged)))
+    return "".join(out)
+
+
+class _Series:
+    """
+    The plotted columns, spilled to a temporary file as the bag streams (constant memory).
+
+    A 10-minute 1 kHz bag has 600k samples; kept as Python objects they took most of
+    replay's 1.2 GB peak, and even packed they would be 38 MB.
+    """
+
+    COLUMNS = ("t", "torque", "b2b", "speed", "load", "groups", "largest", "meas")
+    BUFFER_ROWS = 8192
+
+    def __init__(self, measured):
+        import tempfile
+        self.measured = measured
+        self._file = tempfile.TemporaryFile()
+        self._buf = array("d")
+        self.rows = 0
+        self._groups, self._group_sizes = None, None
+
+    def add(self, pred):
+        """Append one prediction (its measurement comes later through ``measure``)."""
+        return self.add_values(prediction_values(pred))
+
+    def add_values(self, v):
+        """``add`` the Prediction whose fields are the tuple ``v`` (``process_values``)."""
+        groups = v[10]
+        if groups is not self._groups:
+            # the same groups answer every sample until the next step: counted once
+            self._groups = groups
+            self._group_sizes = (len(groups), max([len(g[0]) for g in groups], default=0))
+        row = (v[0], v[4], v[6], v[2], v[3]) + self._group_sizes
+        if self.measured:
+            return row
+        self._append(row + (math.nan,))
+        return None
+
+    def measure(self, row, meas):
+        """Append a row held back by ``add`` with its measured torque."""
+        self._append(row + (meas,))
+
+    def add_rows(self, rows, measured=True):
+        """
+        ``add_values`` the answer of each (answer, measured torque) of ``rows``, in order.
+
+        The rows go straight into the buffer, the measured torque last (NaN without
+        ``measured``); the group sizes are counted once per groups object, as ``add_values``
+        counts them.
+        """
+        buf, groups, sizes = self._buf, self._groups, self._group_sizes
+        nan = math.nan
+        for v, meas in rows:
+            g = v[10]
+            if g is not groups:     # every answer at 20 rev/s: a loop, not max's listcomp
+                groups, largest = g, 0
+                for x in g:
+                    if len(x[0]) > largest:
+                        largest = len(x[0])
+                sizes = (len(g), largest)
+            buf.extend((v[0], v[4], v[6], v[2], v[3]) + sizes)
+            buf.append(meas if measured else nan)
+        self._groups, self._group_sizes = groups, sizes
+        self.rows += len(rows)
+        self._spill()
+
+    def _append(self, row):
+        self._buf.extend(row)
+        self.rows += 1
+        self._spill()
+
+    def _spill(self):
+        """Write the buffer to the file once it holds BUFFER_ROWS rows."""
+        if len(self._buf) >= self.BUFFER_ROWS * len(self.COLUMNS):
+            self._buf.tofile(self._file)
+            del self._buf[:]
+
+    def chunks(self):
+        """Yield the rows written so far as (n, 8) float64 arrays, a buffer at a time."""
+        self._buf.tofile(self._file)
+        del self._buf[:]
+        self._file.flush()
+        self._file.seek(0)
+        width = len(self.COLUMNS)
+        while True:
+            block = np.fromfile(self._file, dtype=np.float64,
+                                count=self.BUFFER_ROWS * width)
+            if block.size == 0:
+                return
+            yield block.reshape(-1, width)
+
+    def decimated(self, buckets=2000):
+        """
+        Return the columns min/max-decimated to ``buckets`` (x repeated twice per bucket).
+
+        At the figure's resolution a min/max envelope draws what every point would, from a
+        bounded number of points.
+        """
+        per = max(1, math.ceil(self.rows / buckets))
+        if per == 1:
+            data = np.concatenate(list(self.chunks()) or [np.zeros((0, 8))])
+            return {k: data[:, i] for i, k in enumerate(self.COLUMNS)}
+        lo, hi, xs = [], [], []
+        carry = np.zeros((0, len(self.COLUMNS)))
+        for block in self.chunks():
+            block = np.concatenate([carry, block])
+            n = (len(block) // per) * per
+            carry = block[n:].copy()
+            if n:
+                b = block[:n].reshape(-1, per, len(self.COLUMNS))
+                lo.append(np.nanmin(b, axis=1) if self.measured else b.min(axis=1))
+                hi.append(np.nanmax(b, axis=1) if self.measured else b.max(axis=1))
+                xs.append(b[:, 0, 0].copy())     # a view would keep every block alive
+        if len(carry):
+            lo.append(np.nanmin(carry, axis=0)[None] if self.measured else carry.min(0)[None])
+            hi.append(np.nanmax(carry, axis=0)[None] if self.measured else carry.max(0)[None])
+            xs.append(carry[:1, 0])
+        lo, hi, x = np.concatenate(lo), np.concatenate(hi), np.concatenate(xs)
+        out = {k: np.column_stack([lo[:, i], hi[:, i]]).ravel()
+               for i, k in enumerate(self.COLUMNS)}
+        out["t"] = np.repeat(x, 2)
+        return out
+
+    def close(self):
+        self._file.close()

@@ -287,10 +287,6 @@ class _Answers:
         return self._answer_values(sample, self._last_extra, False,
                                    abs(sample.stamp_s - self.schedule.stamp))
 
-    def _answer(self, sample, extra, stepped, model_age_s):
-        """Return the Prediction for ``sample`` from the current state, with its feedforward."""
-        return _prediction(*self._answer_values(sample, extra, stepped, model_age_s))
-
     def _answer_values(self, sample, extra, stepped, model_age_s):
         """Return ``_answer``'s Prediction as the tuple of its fields, in their order."""
         st = self._state
@@ -404,13 +400,17 @@ class _Steps:
         df = sample.axial_load_n - f0
         dt = sample.stamp_s - t0
         if hasattr(self.screw, "step_path"):
-            # the path's columns, as _step passes them (an InputSample per sub-step was a
-            # tenth of replay's work apart from the model at 20 rev/s)
-            rs = [i / n for i in range(1, n)]
+            # the path's columns, as _step passes them (an InputSample per sub-step, or a
+            # comprehension per column, was a cost per input at 20 rev/s)
+            angles, velocities, loads = path = ([], [], [])
+            for i in range(1, n):
+                r = i / n
+                angles.append(a0 + r * da)
+                velocities.append(w0 + r * dw)
+                loads.append(f0 + r * df)
             self.stats.substeps += n - 1
             s.stamp = t0 + (n - 1) / n * dt
-            return ([a0 + r * da for r in rs], [w0 + r * dw for r in rs],
-                    [f0 + r * df for r in rs])
+            return path
         for i in range(1, n):
             r = i / n
             self._step(InputSample(t0 + r * dt, a0 + r * da, w0 + r * dw, f0 + r * df),
@@ -444,10 +444,10 @@ class _Steps:
             res = self.screw.step(sample.nut_angle_rad, sample.nut_velocity_rad_s,
                                   sample.axial_load_n, dt_s, substep=not answered)
         self.stats.last_step_wall_s = took = (time.perf_counter() - t0) / points
-        for _ in range(points):
-            mean = self._step_time_s
-            self._step_time_s = took if mean is None \
-                else mean + STEP_TIME_WEIGHT * (took - mean)
+        mean = self._step_time_s
+        for _ in range(points):     # each step's share, in turn (in a local: a cost per step)
+            mean = took if mean is None else mean + STEP_TIME_WEIGHT * (took - mean)
+        self._step_time_s = mean
         self.stats.model_steps += points
         if not res.converged:
             self.stats.nonconverged_steps += 1
@@ -615,11 +615,8 @@ class ModelRunner(_Answers, _Steps):
         agree: the sample gets no prediction (None), it is counted as rejected
         ``model_error`` (message in ``stats.last_error``) and the state is reset.
         """
-        try:
-            return _prediction(*self._process(sample, allow_step))
-        except Exception as exc:   # any failure of the physics: counted, never fatal
-            self._model_error(exc, nut_state=True)
-            return None
+        v = self.process_values(sample, allow_step)
+        return None if v is None else _prediction(*v)
 
     def process_values(self, sample, allow_step=True):
         """
@@ -793,8 +790,11 @@ def build_runner(config_path, model_rate_hz, model_step_deg=None, max_model_step
 
 def _groups(groups):
     """Convert groups to hashable tuples ((ball ids), (forces N)) for change detection."""
-    # WholeScrew's groups are tuples of Python ints and floats already: taken as they are
-    # (converting them again per step was a tenth of replay's own CPU at 20 rev/s)
-    return tuple([(ids if type(ids) is tuple else tuple(int(i) for i in ids),
-                   forces if type(forces) is tuple else tuple(float(f) for f in forces))
-                  for ids, forces in groups])
+    # WholeScrew's are (ids, forces) tuples of Python ints and floats: taken as they are
+    for g in groups:
+        if type(g) is not tuple or len(g) != 2 or type(g[0]) is not tuple \
+                or type(g[1]) is not tuple:
+            return tuple([(ids if type(ids) is tuple else tuple(int(i) for i in ids),
+                           forces if type(forces) is tuple else tuple(float(f) for f in forces))
+                          for ids, forces in groups])
+    return tuple(groups)

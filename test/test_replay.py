@@ -289,7 +289,7 @@ def test_csv_text_reusing_repeated_values_is_the_row_formats_text():
     torque equal to the row before's: byte for byte _row_formats' lines, through repeats
     of 0.0 and -0.0, NaN, infinities and numpy floats equal to Python ones.
     """
-    from bb_friction_ros.replay import _csv_text, _row_formats
+    from bb_friction_ros.replay import _csv_text, _csv_values, _row_formats
     rng = np.random.default_rng(3)
     odd = [math.nan, math.inf, -math.inf, -0.0, 0.0, 1e-300, 5e-324, 0.1, np.float64(0.1),
            np.float64(-0.0), 1.5, np.float64(1.5)]
@@ -304,9 +304,14 @@ def test_csv_text_reusing_repeated_values_is_the_row_formats_text():
                     elif r < 0.5:
                         v[i] = odd[int(rng.integers(0, len(odd)))]
                 v[0] = float(rng.uniform(0.0, 2e9))
-                values = tuple(v[:6]) + ((v[7],) if empirical else ()) + (k % 2,)
+                # the answer (process_values' fields): b2g and the fields past the
+                # converged flag are not written; the flag as bool, int or numpy bool
+                flag = (k % 2 == 1, k % 3, np.bool_(k % 5))[k % 3]
+                answer = (*v[:5], -7.5, v[5], v[7], flag, 0.0, (), 37, True)
+                values = _csv_values(answer, empirical)
+                assert values[:6] == tuple(v[:6]) and values[-1] == int(bool(flag))
                 meas = v[6] if measured else None
-                rows.append((values, meas))
+                rows.append((answer, meas))
                 full = values[:6] + (meas,) + values[6:] if measured else values
                 want.append(_row_formats(measured, empirical) % full)
             assert _csv_text(rows, empirical) == "".join(want)
