@@ -174,10 +174,8 @@ class _OutputBag:
         """``publish`` the Prediction whose fields are the tuple ``v`` (``process_values``)."""
         sec, nanosec = divmod(stamp, 1_000_000_000)
         pending = self.pending
-        # prediction_values_cdr, inline (a call per answer)
-        pending.append((self._prediction, log_ns, _PREDICTION_CDR.pack(
-            _CDR_LE, sec, nanosec, 1, b"\x00", v[1], v[2], v[3], v[4], v[5], v[6], v[7],
-            bool(v[8]), latency_s, v[9], len(v[10]), v[15], bool(v[16]), int(v[17]), v[18])))
+        pending.append((self._prediction, log_ns,
+                        prediction_values_cdr(v, sec, nanosec, latency_s)))
         # the runner's safe value (held or 0 after a step that did not converge), as the node;
         # the same float object as the answer before's (a held state's) packs the same bytes
         ff = v[13]
