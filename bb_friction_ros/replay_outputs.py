@@ -304,34 +304,14 @@ class _Series:
         self.rows = 0
         self._groups, self._group_sizes = None, None
 
-    def add(self, pred):
-        """Append one prediction (its measurement comes later through ``measure``)."""
-        return self.add_values(prediction_values(pred))
-
-    def add_values(self, v):
-        """``add`` the Prediction whose fields are the tuple ``v`` (``process_values``)."""
-        groups = v[10]
-        if groups is not self._groups:
-            # the same groups answer every sample until the next step: counted once
-            self._groups = groups
-            self._group_sizes = (len(groups), max([len(g[0]) for g in groups], default=0))
-        row = (v[0], v[4], v[6], v[2], v[3]) + self._group_sizes
-        if self.measured:
-            return row
-        self._append(row + (math.nan,))
-        return None
-
-    def measure(self, row, meas):
-        """Append a row held back by ``add`` with its measured torque."""
-        self._append(row + (meas,))
-
     def add_rows(self, rows, measured=True):
         """
-        ``add_values`` the answer of each (answer, measured torque) of ``rows``, in order.
+        Append the answer of each (answer, measured torque) of ``rows``, in order.
 
-        The rows go straight into the buffer, the measured torque last (NaN without
-        ``measured``); the group sizes are counted once per groups object, as ``add_values``
-        counts them.
+        An answer: the Prediction's fields as a tuple (``ModelRunner.process_values``).  The
+        rows go straight into the buffer, the measured torque last (NaN without
+        ``measured``); the group sizes are counted once per groups object (the same groups
+        answer every sample until the next step).
         """
         buf, groups, sizes = self._buf, self._groups, self._group_sizes
         nan = math.nan
@@ -347,11 +327,6 @@ class _Series:
             buf.append(meas if measured else nan)
         self._groups, self._group_sizes = groups, sizes
         self.rows += len(rows)
-        self._spill()
-
-    def _append(self, row):
-        self._buf.extend(row)
-        self.rows += 1
         self._spill()
 
     def _spill(self):

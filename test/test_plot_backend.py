@@ -10,7 +10,7 @@ import pytest
 
 from bb_friction_ros.ball_screw.simulation import plot_fig20, plot_fig21
 from bb_friction_ros.replay import plot_replay, _Series
-from bb_friction_ros.runner import Prediction
+from bb_friction_ros.runner import Prediction, prediction_values
 
 PACKAGE = pathlib.Path(__file__).resolve().parent.parent / "bb_friction_ros"
 
@@ -44,8 +44,7 @@ def test_plotting_keeps_the_callers_backend(caller_backend, tmp_path):
     plot_fig20(_steps(), 0.2, 4.0, tmp_path / "fig20.png")
     plot_fig21(_steps(), tmp_path / "fig21.png")
     series = _Series(measured=True)        # replay's streamed columns
-    for pred in _predictions():
-        series.measure(series.add(pred), 0.021)
+    series.add_rows([(prediction_values(pred), 0.021) for pred in _predictions()])
     plot_replay(tmp_path, series)
     assert matplotlib.get_backend() == caller_backend
     for name in ("fig20.png", "fig21.png", "replay_torque_and_groups.png"):

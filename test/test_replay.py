@@ -558,9 +558,13 @@ def test_plotted_series_decimates_in_bounded_memory():
     from bb_friction_ros.replay import _Series
     series = _Series(measured=False)
     n = 200_000
-    for k in range(n):
-        series.measure((0.001 * k, math.sin(k / 500.0), 0.0, 6.0, 1500.0, 0.0, float(k % 7)),
-                       math.nan)
+    # answers as process_values gives them: stamp, angle, speed, load, torque, b2g, b2b, ...,
+    # groups; the largest group cycles through 0..6 balls
+    groups = [((tuple(range(j)), ()),) for j in range(7)]
+    for k0 in range(0, n, 1000):
+        series.add_rows([((0.001 * k, 0.0, 6.0, 1500.0, math.sin(k / 500.0), 0.0, 0.0, 0.0,
+                           True, 0.0, groups[k % 7]), math.nan)
+                         for k in range(k0, k0 + 1000)], measured=False)
     tracemalloc.start()
     try:
         c = series.decimated(buckets=2000)
