@@ -7,11 +7,13 @@ polynomial atan2 within its stated bound of 2 ulp, the hypot bit for bit (the co
 of the kernel equal the numpy model's exactly, test_fast_solver).  The free balls' 6 x 6
 Newton blocks, solved eight lanes at a time, are checked against the scalar Gauss solve,
 including the lanes that need a row exchange and a singular block (its Levenberg-Marquardt
-retry).
+retry); that solve is generated code, and must be what its generator writes.
 """
 
 import copy
+import importlib.util
 import math
+import pathlib
 
 import numpy as np
 import pytest
@@ -92,7 +94,7 @@ def test_free_blocks_solved_across_lanes_equal_the_scalar_solve(nf):
     free = np.stack([order, np.arange(nf)], axis=1).astype(np.int64)
     xs = np.full((n, 7, 9), np.nan)
     work = [np.empty((7, 7)), np.empty((7, 9)), np.empty((7, 7)), np.empty((7, 9))]
-    kernel.solve_free_blocks(jac, res, free, nf, xs, np.empty((kernel.FB_ROWS, 64)), *work)
+    kernel.solve_free_blocks(jac, res, free, nf, xs, np.empty(kernel.FB_ROWS * 64), *work)
     for b, k in free:
         np.testing.assert_allclose(xs[k, :6, 7:9], _scalar_solve(jac, res, b), rtol=1e-11,
                                    atol=1e-11 * np.abs(_scalar_solve(jac, res, b)).max())
@@ -109,3 +111,17 @@ def test_a_copied_screw_has_work_arrays_of_its_own():
     for k in range(1, 6):
         rb = other.step(k * 0.03, w, 1500.0, 0.005)
     assert ra.torque_total_nm == rb.torque_total_nm
+
+
+def test_lane_solve_is_what_its_generator_writes():
+    root = pathlib.Path(__file__).resolve().parents[2]
+    spec = importlib.util.spec_from_file_location("gen_lane_solve",
+                                                  root / "tools" / "gen_lane_solve.py")
+    gen = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(gen)
+    text = gen.KERNEL.read_text()
+    assert gen.rewritten(text) == text, "kernel.py is out of date: run tools/gen_lane_solve.py"
+    assert gen.main(["--check"]) == 0
+    # The check fails on a kernel whose generated function was edited by hand.
+    edited = text.replace("bad = 0.0", "bad = 0.5", 1)
+    assert gen.rewritten(edited) != edited
