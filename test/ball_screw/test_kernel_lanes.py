@@ -7,7 +7,8 @@ polynomial atan2 within its stated bound of 2 ulp, the hypot bit for bit (the co
 of the kernel equal the numpy model's exactly, test_fast_solver).  The free balls' 6 x 6
 Newton blocks, solved eight lanes at a time, are checked against the scalar Gauss solve,
 including the lanes that need a row exchange and a singular block (its Levenberg-Marquardt
-retry); that solve is generated code, and must be what its generator writes.
+retry); so are the written-out solves of a chain's blocks.  These solves are generated
+code, and must be what their generator writes.
 """
 
 import copy
@@ -113,15 +114,49 @@ def test_a_copied_screw_has_work_arrays_of_its_own():
     assert ra.torque_total_nm == rb.torque_total_nm
 
 
-def test_lane_solve_is_what_its_generator_writes():
+def test_block_solves_are_what_their_generator_writes():
     root = pathlib.Path(__file__).resolve().parents[2]
-    spec = importlib.util.spec_from_file_location("gen_lane_solve",
-                                                  root / "tools" / "gen_lane_solve.py")
+    spec = importlib.util.spec_from_file_location("gen_block_solves",
+                                                  root / "tools" / "gen_block_solves.py")
     gen = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(gen)
     text = gen.KERNEL.read_text()
-    assert gen.rewritten(text) == text, "kernel.py is out of date: run tools/gen_lane_solve.py"
+    assert gen.rewritten(text) == text, "run tools/gen_block_solves.py"
     assert gen.main(["--check"]) == 0
     # The check fails on a kernel whose generated function was edited by hand.
     edited = text.replace("bad = 0.0", "bad = 0.5", 1)
     assert gen.rewritten(edited) != edited
+
+
+@compiled.jit
+def _block_solves(d, w, n):
+    return kernel._block_solve7(d, w) if n == 7 else kernel._block_solve6(d, w)
+
+
+@pytest.mark.parametrize("n, j0", [(7, 0), (6, 7)])
+def test_chain_block_solves_equal_the_scalar_gauss_solve(n, j0):
+    for case in range(20):
+        d = RNG.normal(size=(7, 7))
+        w = RNG.normal(size=(7, 9))
+        if case % 2:
+            d[0, 0] = 0.0                   # needs row exchanges
+        want_w = w.copy()
+        assert compiled.gauss_solve(d.copy(), want_w, n, j0, np.empty((7, 7)),
+                                    np.empty((7, 9)))
+        got_w = w.copy()
+        assert _block_solves(d.copy(), got_w, n)
+        np.testing.assert_allclose(got_w[:n, j0:], want_w[:n, j0:], rtol=1e-12,
+                                   atol=1e-12 * np.abs(want_w[:n, j0:]).max())
+        # Columns outside the right-hand sides are left alone.
+        np.testing.assert_array_equal(got_w[:, :j0], w[:, :j0])
+
+
+@pytest.mark.parametrize("n", [7, 6])
+def test_a_singular_chain_block_is_left_for_the_retry(n):
+    d = RNG.normal(size=(7, 7))
+    d[:, 1] = 0.0                           # singular: the caller's gauss_solve retries
+    w = RNG.normal(size=(7, 9))
+    d_in, w_in = d.copy(), w.copy()
+    assert not _block_solves(d, w, n)
+    np.testing.assert_array_equal(d, d_in)
+    np.testing.assert_array_equal(w, w_in)
