@@ -84,7 +84,7 @@ _LANE_PAD = 8       # the passes' lanes are padded to a multiple of this (the ve
 _NX, _NZ, _DIST, _Q, _SQ, _POS = 0, 1, 2, 3, 4, 5
 # Rows of ek (the same layout): the ellipse, slip, spin and map coordinates.
 _A, _AS, _RX, _RY, _RHO, _S, _W, _SX, _SY = 0, 1, 2, 3, 4, 5, 6, 7, 8
-# Rows of em: the map's fx, fy, m, p (0..3), their t- (4..7) and h-derivatives (8..11).
+# Rows of em: the map's fx, fy, m, p (0..3), their t- (4..6) and h-derivatives (8..10).
 _VAL = 0
 _DVT = 4
 _DVH = 8
@@ -293,7 +293,9 @@ def _contact_maps(coef_s, coef_n, m, n_pol, n_az, dtm, dhm, want_jac, ev, ek, em
                 qv3 = (cf[cell, 0, b + 3] + cf[cell, 1, b + 3] * sy
                        + cf[cell, 2, b + 3] * sy2 + cf[cell, 3, b + 3] * sy3)
                 emk[(_VAL + o) * _CHUNK + i] = qv0 + qv1 * sx + qv2 * sx2 + qv3 * sx3
-                if not want_jac:
+                # p enters the loss only, which no equation holds: its derivatives (rows
+                # _DVT + 3, _DVH + 3) are not needed.
+                if not want_jac or o == 3:
                     continue
                 qd0 = cf[cell, 1, b] + 2.0 * cf[cell, 2, b] * sy + 3.0 * cf[cell, 3, b] * sy2
                 qd1 = (cf[cell, 1, b + 1]
