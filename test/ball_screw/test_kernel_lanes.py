@@ -95,7 +95,8 @@ def test_free_blocks_solved_across_lanes_equal_the_scalar_solve(nf):
     free = np.stack([order, np.arange(nf)], axis=1).astype(np.int64)
     xs = np.full((n, 7, 9), np.nan)
     work = [np.empty((7, 7)), np.empty((7, 9)), np.empty((7, 7)), np.empty((7, 9))]
-    kernel.solve_free_blocks(jac, res, free, nf, xs, np.empty(kernel.FB_ROWS * 64), *work)
+    kernel.solve_free_blocks(jac, res, free, nf, xs, np.empty(kernel.FB_ROWS * 64), *work,
+                             np.empty(0), False, 1.0, 1.0)
     for b, k in free:
         np.testing.assert_allclose(xs[k, :6, 7:9], _scalar_solve(jac, res, b), rtol=1e-11,
                                    atol=1e-11 * np.abs(_scalar_solve(jac, res, b)).max())
@@ -160,3 +161,34 @@ def test_a_singular_chain_block_is_left_for_the_retry(n):
     assert not _block_solves(d, w, n)
     np.testing.assert_array_equal(d, d_in)
     np.testing.assert_array_equal(w, w_in)
+
+
+@pytest.mark.parametrize("n", [5, 37, 64])
+def test_free_blocks_read_in_place_from_the_evaluation_rows_equal_those_copied_out(n):
+    # evaluate_lanes leaves ball b's Jacobian entry (r, j) at row _ACC_JAC + 7 j + r and its
+    # unscaled residual at row r, lane b; the residual is scaled by 1 / scale (forces) and
+    # 1 / (R_B scale) (moments), here 2 and 4: exact, so both solves see the same numbers.
+    jac = RNG.normal(size=(n, 6, 7))
+    res = RNG.normal(size=(n, 6))
+    jac[0, 0, 0] = 0.0                                    # needs a row exchange
+    jac[1, :, 1] = 0.0                                    # singular: the shifted retry
+    rows = np.full(kernel._ACC_ROWS * kernel._CHUNK, np.nan)
+    for b in range(n):
+        for r in range(6):
+            rows[r * kernel._CHUNK + b] = res[b, r] / (2.0 if r < 3 else 4.0)
+            for j in range(7):
+                rows[(kernel._ACC_JAC + 7 * j + r) * kernel._CHUNK + b] = jac[b, r, j]
+    for r in range(kernel._ACC_ROWS):                     # padded lanes: open contacts
+        rows[r * kernel._CHUNK + n:(r + 1) * kernel._CHUNK] = 0.0
+    free = np.stack([RNG.permutation(n), np.arange(n)], axis=1).astype(np.int64)[:n - 2]
+    nf = free.shape[0]
+    work = [np.empty((7, 7)), np.empty((7, 9)), np.empty((7, 7)), np.empty((7, 9))]
+    xs_rows = np.full((n, 7, 9), np.nan)
+    kernel.solve_free_blocks(np.empty((0, 6, 7)), res, free, nf, xs_rows,
+                             np.empty(kernel.FB_ROWS * 64), *work, rows, True, 2.0, 4.0)
+    xs_arrays = np.full((n, 7, 9), np.nan)
+    kernel.solve_free_blocks(jac, res, free, nf, xs_arrays, np.empty(kernel.FB_ROWS * 64),
+                             *work, np.empty(0), False, 2.0, 4.0)
+    ks = free[:, 1]
+    np.testing.assert_array_equal(xs_rows[ks, :6, 7:9], xs_arrays[ks, :6, 7:9])
+    assert np.isfinite(xs_rows[ks, :6, 7:9]).all()
