@@ -172,29 +172,33 @@ class _PathSteps:
 
         """
         t0 = time.perf_counter()
-        # np.array, not np.asarray(...).ravel(): a list (as the runner and the look-ahead
-        # pass) is read a third faster; an array is copied (a few floats).
-        angles = np.array(nut_angles_rad, float)
-        w = np.array(nut_velocities_rad_s, float)
-        loads = np.array(axial_loads_n, float)
-        if angles.ndim != 1 or w.ndim != 1 or loads.ndim != 1:
-            angles, w, loads = angles.ravel(), w.ravel(), loads.ravel()
+        try:
+            # np.fromiter: a list (as the runner and the look-ahead pass) is read in a fifth
+            # less time than by np.asarray(...).ravel() right after the compiled call.
+            angles = np.fromiter(nut_angles_rad, float)
+            w = np.fromiter(nut_velocities_rad_s, float)
+            loads = np.fromiter(axial_loads_n, float)
+        except (TypeError, ValueError):     # a number, or nested sequences: flattened
+            angles = np.asarray(nut_angles_rad, dtype=float).ravel()
+            w = np.asarray(nut_velocities_rad_s, dtype=float).ravel()
+            loads = np.asarray(axial_loads_n, dtype=float).ravel()
         k = len(angles)
         if k == 0 or len(w) != k or len(loads) != k:
             raise ValueError(f"step_path: {k} angles, {len(w)} velocities and "
                              f"{len(loads)} loads (one of each per step, at least one)")
-        done, res, missed, sub_it = self._path_fused(angles, w, loads, float(dt_s))
-        for j in range(done, k):
-            if res is not None:
-                missed += not res.converged
-                sub_it += res.iterations
-            res = self.step(angles[j], w[j], loads[j], dt_s, substep=j < k - 1)
+        done, res, missed, sub_it = self._path_fused(angles, w, loads, k, float(dt_s))
+        if done < k:
+            for j in range(done, k):
+                if res is not None:
+                    missed += not res.converged
+                    sub_it += res.iterations
+                res = self.step(angles[j], w[j], loads[j], dt_s, substep=j < k - 1)
         res.substeps_not_converged = missed
         res.substep_iterations = sub_it
         res.solve_time_s = time.perf_counter() - t0
         return res
 
-    def _path_fused(self, angles, w, loads, dt_s):
+    def _path_fused(self, angles, w, loads, k, dt_s):
         """
         Take the leading warm steps of a path in one compiled call (``step_path``).
 
@@ -247,26 +251,31 @@ class _PathSteps:
         if done:
             # ``step``'s bookkeeping of the steps done: the state is the buffer's (views
             # into it; a copy of this model copies them, see __copy__).
-            self.nut_angle = float(angles[done - 1])
+            self.nut_angle = angles.item(done - 1)
             t = self.time
             for _ in range(done):
                 t += dt_s       # as ``step`` sums it, step by step
             self.time = t
-            u, up = (v[7], v[8]) if buf.elastic else (float(v[7][0]), float(v[8][0]))
-            self._prev = buf.last_prev = (v[1], up, v[3], float(state[16 * self.n]))
+            if buf.elastic:
+                dp, u, up = buf.tail.item(0), v[7], v[8]
+            else:
+                dp, u, up = buf.tail.tolist()     # state[16 N:16 N + 3]: one call, not three
+            self._prev = buf.last_prev = (v[1], up, v[3], dp)
             self._state = buf.last_state = (v[0], u, sign, load_sign)
             self._forces, self.azimuth, self.ratio, self._active = v[2], v[4], v[5], v[6]
         missed = int(r[9])
-        k = angles.shape[0]
         if done < k:
             return done, None, missed, int(r[10])
         rear, front = groups.tolist()
+        if len(rear) > 1:
+            grp = _groups(rear, front, blk[7][:len(rear)].tolist())
+        else:       # none, or the one pair closed (most answers): no chains to find
+            grp = [((rear[0], front[0]), (blk.item(7, 0),))] if rear else []
         # blk[6]: the B2B forces the kernel also left in the state (v[2]), in an array of
         # this answer's own (a copy of v[2] cost more).
-        res = self._result(float(w[k - 1]), float(loads[k - 1]), r[5], r[6], r[7], r[8],
+        res = self._result(w.item(k - 1), loads.item(k - 1), r[5], r[6], r[7], r[8],
                            bool(r[1]), int(r[3]), blk[1], blk[2], blk[4], blk[8:12].T, blk[5],
-                           blk[6], _groups(rear, front, blk[7, :len(rear)].tolist())
-                           if rear else [], time.perf_counter())
+                           blk[6], grp, time.perf_counter())
         return done, res, missed, int(r[10] - r[3])
 
     def _path_settings(self, buf, key):
@@ -304,6 +313,7 @@ class _PathSteps:
         settings[14] = self.model.ball.hertz[0].coef_delta_m_per_n23
         buf = self._path_buf = _PathBuffers()
         buf.state, buf.views, buf.settings, buf.elastic = state, views, settings, elastic
+        buf.tail = state[16 * n:16 * n + (1 if elastic else 3)]
         buf.result = np.zeros(kernel.RESULT_SIZE)
         buf.epar = kernel.pack_elastic_constants(self.config.geometry.lead_m,
                                                  self.config.elastic) if elastic else np.zeros(0)
@@ -320,7 +330,7 @@ class _PathBuffers:
     """
 
     __slots__ = ("state", "views", "settings", "result", "epar", "elastic", "key", "par",
-                 "coef_s", "coef_n", "last_state", "last_prev")
+                 "coef_s", "coef_n", "last_state", "last_prev", "tail")
 
     def __init__(self):
         """Nothing written yet: the first call writes the settings and the state."""

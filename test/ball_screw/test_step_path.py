@@ -244,3 +244,20 @@ def test_the_answer_builder_puts_each_value_in_its_field(model, config):
         assert getattr(r, name) is value, name
     assert r.groups is groups and r.solve_time_s > 0.0
     assert (r.substeps_not_converged, r.substep_iterations) == (0, 0)
+
+
+@pytest.mark.parametrize("form", [list, tuple, np.array, lambda c: np.array(c)[:, None]])
+def test_step_path_reads_its_points_in_any_form(model, config, form):
+    """Lists (the runner's), tuples, arrays and nested columns give the same answers."""
+    paths = _paths(8)
+    ref = _by_path(WholeScrew(config, model), paths)
+    screw = WholeScrew(config, model)
+    for steps, r in zip(paths, ref):
+        q = screw.step_path(*(form(c) for c in zip(*steps)), DT_S)
+        _same(r, q)
+    one = WholeScrew(config, model)
+    for steps, r in zip(paths, ref):      # a path of one point may be given as numbers
+        for j, (a, w, f) in enumerate(steps):
+            q = one.step_path(a, w, f, DT_S) if j == len(steps) - 1 else one.step(
+                a, w, f, DT_S, substep=True)
+        _same(r, q)
