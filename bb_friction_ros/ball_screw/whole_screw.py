@@ -186,8 +186,67 @@ class _PathSteps:
         if k == 0 or len(w) != k or len(loads) != k:
             raise ValueError(f"step_path: {k} angles, {len(w)} velocities and "
                              f"{len(loads)} loads (one of each per step, at least one)")
-        done, res, missed, sub_it = self._path_fused(angles, w, loads, k, float(dt_s))
+        dt_s = float(dt_s)
+        # The leading warm steps in one compiled call, in this frame (a method of its own
+        # was measured to cost 0.3 us a call after the compiled call).
+        res, done, missed, sub_it = None, 0, 0, 0
+        solver = self.model.solver
+        if (self._state is not None and self._geo is not None and solver.use_kernel
+                and getattr(self._warm_solve, "__func__", None) is _COMPILED_WARM_SOLVE):
+            sign, load_sign = self._state[2], self._state[3]
+            buf = self._path_buf
+            if buf is None:
+                buf = self._path_buffers(self.config.load_distribution == "elastic")
+            v = buf.views
+            if not (self._state is buf.last_state and self._prev is buf.last_prev
+                    and self._forces is v[2] and self.azimuth is v[4] and self.ratio is v[5]
+                    and self._active is v[6]):
+                self._path_state_in(buf)
+            key = (sign, load_sign, solver, solver.settings, self.config.solver,
+                   solver.disp_limit, solver.extra_oversize_m)
+            if key != buf.key:
+                # Packed again only when the direction, the load sign or a setting changed:
+                # the same values as every call would write (measured: a fifth of the Python
+                # around the call).
+                self._path_settings(buf, key)
+            buf.settings[6] = self.nut_angle
+            blk, groups = kernel.warm_steps(buf.state, v[6], angles, w, loads, buf.par,
+                                            buf.epar, buf.coef_s, buf.coef_n, *self._work,
+                                            buf.settings, buf.result)
+            r = buf.result.tolist()
+            done = int(r[0])
+            if done:
+                # ``step``'s bookkeeping of the steps done: the state is the buffer's (views
+                # into it; a copy of this model copies them, see __copy__).
+                self.nut_angle = angles.item(done - 1)
+                t = self.time
+                for _ in range(done):
+                    t += dt_s       # as ``step`` sums it, step by step
+                self.time = t
+                if buf.elastic:
+                    dp, u, up = buf.tail.item(0), v[7], v[8]
+                else:
+                    dp, u, up = buf.tail.tolist()   # state[16 N:16 N + 3]: one call, not three
+                self._prev = buf.last_prev = (v[1], up, v[3], dp)
+                self._state = buf.last_state = (v[0], u, sign, load_sign)
+                self._forces, self.azimuth, self.ratio, self._active = v[2], v[4], v[5], v[6]
+            missed = int(r[9])
+            if done == k:
+                rear, front = groups.tolist()
+                if len(rear) > 1:
+                    grp = _groups(rear, front, blk[7][:len(rear)].tolist())
+                else:       # none, or the one pair closed (most answers): no chains to find
+                    grp = [((rear[0], front[0]), (blk.item(7, 0),))] if rear else []
+                # blk[6]: the B2B forces the kernel also left in the state (v[2]), in an
+                # array of this answer's own (a copy of v[2] cost more).
+                res = self._result(w.item(k - 1), loads.item(k - 1), r[5], r[6], r[7], r[8],
+                                   bool(r[1]), int(r[3]), blk[1], blk[2], blk[4], blk[8:12].T,
+                                   blk[5], blk[6], grp, None)
+                sub_it = int(r[10] - r[3])
+            else:
+                sub_it = int(r[10])
         if done < k:
+            # A step the compiled call could not take, and those after it.
             for j in range(done, k):
                 if res is not None:
                     missed += not res.converged
@@ -198,88 +257,33 @@ class _PathSteps:
         res.solve_time_s = time.perf_counter() - t0
         return res
 
-    def _path_fused(self, angles, w, loads, k, dt_s):
+    def _path_state_in(self, buf):
         """
-        Take the leading warm steps of a path in one compiled call (``step_path``).
+        Copy the state as ``step`` keeps it into the path buffer (``step_path``).
 
-        Returns (steps done, the last one's StepResult if that was the path's last step else
-        None, sub-steps not converged, their iterations).
+        Not needed when the last step was a path's: then the kernel left every value of it
+        in place, and the state tuples, never changed in place, say so.  The previous step's
+        first, since it may be the buffer's current x.
         """
-        solver = self.model.solver
-        if not (self._state is not None and self._geo is not None and solver.use_kernel
-                and getattr(self._warm_solve, "__func__", None) is _COMPILED_WARM_SOLVE):
-            return 0, None, 0, 0
-        sign, load_sign = self._state[2], self._state[3]
-        buf = self._path_buf
-        if buf is None:
-            buf = self._path_buffers(self.config.load_distribution == "elastic")
-        state, v, settings, result = buf.state, buf.views, buf.settings, buf.result
-        if not (self._state is buf.last_state and self._prev is buf.last_prev
-                and self._forces is v[2] and self.azimuth is v[4] and self.ratio is v[5]
-                and self._active is v[6]):
-            # The state as ``step`` keeps it, into the model's own buffer unless it is there
-            # already (the last step was a path's: then the kernel left every value of it in
-            # place, and these two tuples, never changed in place, say so); the previous
-            # step's first, since it may be the buffer's current x.
-            x, u = self._state[0], self._state[1]
-            if self._prev is not None:
-                xp, up, fp, dp = self._prev
-            else:
-                xp, up, fp, dp = x, u, self._forces, 0.0
-            v[1][:] = xp
-            v[3][:] = fp
-            v[8][:] = up
-            v[0][:] = x
-            v[2][:] = self._forces
-            v[4][:] = self.azimuth
-            v[5][:] = self.ratio
-            v[6][:] = self._active
-            v[7][:] = u
-            state[16 * self.n] = dp
-        key = (sign, load_sign, solver, solver.settings, self.config.solver,
-               solver.disp_limit, solver.extra_oversize_m)
-        if key != buf.key:
-            # Packed again only when the direction, the load sign or a setting changed: the
-            # same values as every call would write (measured: a fifth of the Python around
-            # the call).
-            self._path_settings(buf, key)
-        settings[6] = self.nut_angle
-        blk, groups = kernel.warm_steps(state, v[6], angles, w, loads, buf.par, buf.epar,
-                                        buf.coef_s, buf.coef_n, *self._work, settings, result)
-        r = result.tolist()
-        done = int(r[0])
-        if done:
-            # ``step``'s bookkeeping of the steps done: the state is the buffer's (views
-            # into it; a copy of this model copies them, see __copy__).
-            self.nut_angle = angles.item(done - 1)
-            t = self.time
-            for _ in range(done):
-                t += dt_s       # as ``step`` sums it, step by step
-            self.time = t
-            if buf.elastic:
-                dp, u, up = buf.tail.item(0), v[7], v[8]
-            else:
-                dp, u, up = buf.tail.tolist()     # state[16 N:16 N + 3]: one call, not three
-            self._prev = buf.last_prev = (v[1], up, v[3], dp)
-            self._state = buf.last_state = (v[0], u, sign, load_sign)
-            self._forces, self.azimuth, self.ratio, self._active = v[2], v[4], v[5], v[6]
-        missed = int(r[9])
-        if done < k:
-            return done, None, missed, int(r[10])
-        rear, front = groups.tolist()
-        if len(rear) > 1:
-            grp = _groups(rear, front, blk[7][:len(rear)].tolist())
-        else:       # none, or the one pair closed (most answers): no chains to find
-            grp = [((rear[0], front[0]), (blk.item(7, 0),))] if rear else []
-        # blk[6]: the B2B forces the kernel also left in the state (v[2]), in an array of
-        # this answer's own (a copy of v[2] cost more).
-        res = self._result(w.item(k - 1), loads.item(k - 1), r[5], r[6], r[7], r[8],
-                           bool(r[1]), int(r[3]), blk[1], blk[2], blk[4], blk[8:12].T, blk[5],
-                           blk[6], grp, time.perf_counter())
-        return done, res, missed, int(r[10] - r[3])
+        v = buf.views
+        x, u = self._state[0], self._state[1]
+        if self._prev is not None:
+            xp, up, fp, dp = self._prev
+        else:
+            xp, up, fp, dp = x, u, self._forces, 0.0
+        v[1][:] = xp
+        v[3][:] = fp
+        v[8][:] = up
+        v[0][:] = x
+        v[2][:] = self._forces
+        v[4][:] = self.azimuth
+        v[5][:] = self.ratio
+        v[6][:] = self._active
+        v[7][:] = u
+        buf.state[16 * self.n] = dp
 
     def _path_settings(self, buf, key):
-        """Write ``kernel.warm_steps``' settings and constants of ``key`` (``_path_fused``)."""
+        """Write ``kernel.warm_steps``' settings and constants of ``key`` (``step_path``)."""
         sign, load_sign, solver, st, cfg, disp_limit = key[:6]
         consts, buf.par = self._step_constants(solver, sign)
         buf.coef_s, buf.coef_n = consts[4], consts[5]
@@ -322,7 +326,7 @@ class _PathSteps:
 
 class _PathBuffers:
     """
-    ``kernel.warm_steps``' arrays of one model, and what ``_path_fused`` keeps between calls.
+    ``kernel.warm_steps``' arrays of one model, and what ``step_path`` keeps between calls.
 
     ``key``: what the settings and packed constants were written for; ``last_state``,
     ``last_prev``: the model's state tuples as the last path call left them (views into
@@ -740,7 +744,7 @@ class WholeScrew(_WarmStep, _PathSteps):
             # Per contact only for a solution: an unconverged iterate's loads mean nothing,
             # and its load |W| already passed the range check in ``step``.
             bool(not converged or load_max <= self.max_contact_load_n), iterations,
-            time.perf_counter() - t0)
+            0.0 if t0 is None else time.perf_counter() - t0)
 
 
 def _groups(rear, front, forces):
