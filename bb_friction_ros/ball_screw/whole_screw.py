@@ -172,101 +172,132 @@ class _PathSteps:
 
         """
         t0 = time.perf_counter()
-        angles = np.asarray(nut_angles_rad, dtype=float).ravel()
-        w = np.asarray(nut_velocities_rad_s, dtype=float).ravel()
-        loads = np.asarray(axial_loads_n, dtype=float).ravel()
-        k = angles.shape[0]
-        if k == 0 or w.shape != (k,) or loads.shape != (k,):
-            raise ValueError(f"step_path: {k} angles, {w.shape[0]} velocities and "
-                             f"{loads.shape[0]} loads (one of each per step, at least one)")
-        done, res, missed, sub_it = self._path_fused(angles, w, loads, float(dt_s))
-        for j in range(done, k):
-            if res is not None:
-                missed += not res.converged
-                sub_it += res.iterations
-            res = self.step(angles[j], w[j], loads[j], dt_s, substep=j < k - 1)
+        try:
+            # np.fromiter: a list (as the runner and the look-ahead pass) is read in a fifth
+            # less time than by np.asarray(...).ravel() right after the compiled call.
+            angles = np.fromiter(nut_angles_rad, float)
+            w = np.fromiter(nut_velocities_rad_s, float)
+            loads = np.fromiter(axial_loads_n, float)
+        except (TypeError, ValueError):     # a number, or nested sequences: flattened
+            angles = np.asarray(nut_angles_rad, dtype=float).ravel()
+            w = np.asarray(nut_velocities_rad_s, dtype=float).ravel()
+            loads = np.asarray(axial_loads_n, dtype=float).ravel()
+        k = len(angles)
+        if k == 0 or len(w) != k or len(loads) != k:
+            raise ValueError(f"step_path: {k} angles, {len(w)} velocities and "
+                             f"{len(loads)} loads (one of each per step, at least one)")
+        dt_s = float(dt_s)
+        # The leading warm steps in one compiled call, in this frame (a method of its own
+        # for them, and the answer timed there too, cost 0.2 us a step more at 20 rev/s).
+        res, done, missed, sub_it = None, 0, 0, 0
+        solver = self.model.solver
+        if (self._state is not None and self._geo is not None and solver.use_kernel
+                and getattr(self._warm_solve, "__func__", None) is _COMPILED_WARM_SOLVE):
+            sign, load_sign = self._state[2], self._state[3]
+            buf = self._path_buf
+            if buf is None:
+                buf = self._path_buffers(self.config.load_distribution == "elastic")
+            v = buf.views
+            if not (self._state is buf.last_state and self._prev is buf.last_prev
+                    and self._forces is v[2] and self.azimuth is v[4] and self.ratio is v[5]
+                    and self._active is v[6]):
+                self._path_state_in(buf)
+            key = (sign, load_sign, solver, solver.settings, self.config.solver,
+                   solver.disp_limit, solver.extra_oversize_m)
+            if key != buf.key:
+                # Packed again only when the direction, the load sign or a setting changed:
+                # the same values as every call would write (measured: a fifth of the Python
+                # around the call).
+                self._path_settings(buf, key)
+            buf.settings[6] = self.nut_angle
+            blk, groups = kernel.warm_steps(buf.state, v[6], angles, w, loads, buf.par,
+                                            buf.epar, buf.coef_s, buf.coef_n, *self._work,
+                                            buf.settings, buf.result)
+            r = buf.result.tolist()
+            done = int(r[0])
+            if done:
+                # ``step``'s bookkeeping of the steps done: the state is the buffer's (views
+                # into it; a copy of this model copies them, see __copy__).
+                self.nut_angle = angles.item(done - 1)
+                t = self.time
+                for _ in range(done):
+                    t += dt_s       # as ``step`` sums it, step by step
+                self.time = t
+                if buf.elastic:
+                    dp, u, up = buf.tail.item(0), v[7], v[8]
+                else:
+                    dp, u, up = buf.tail.tolist()   # state[16 N:16 N + 3]: one call, not three
+                self._prev = buf.last_prev = (v[1], up, v[3], dp)
+                self._state = buf.last_state = (v[0], u, sign, load_sign)
+                self._forces, self.azimuth, self.ratio, self._active = v[2], v[4], v[5], v[6]
+            missed = int(r[9])
+            if done == k:
+                rear, front = groups.tolist()
+                if len(rear) > 1:
+                    grp = _groups(rear, front, blk[7][:len(rear)].tolist())
+                else:       # none, or the one pair closed (most answers): no chains to find
+                    grp = [((rear[0], front[0]), (blk.item(7, 0),))] if rear else []
+                # blk[6]: the B2B forces the kernel also left in the state (v[2]), in an
+                # array of this answer's own (a copy of v[2] cost more).
+                res = self._result(w.item(k - 1), loads.item(k - 1), r[5], r[6], r[7], r[8],
+                                   bool(r[1]), int(r[3]), blk[1], blk[2], blk[4], blk[8:12].T,
+                                   blk[5], blk[6], grp, None)
+                sub_it = int(r[10] - r[3])
+            else:
+                sub_it = int(r[10])
+        if done < k:
+            # A step the compiled call could not take, and those after it.
+            for j in range(done, k):
+                if res is not None:
+                    missed += not res.converged
+                    sub_it += res.iterations
+                res = self.step(angles[j], w[j], loads[j], dt_s, substep=j < k - 1)
         res.substeps_not_converged = missed
         res.substep_iterations = sub_it
         res.solve_time_s = time.perf_counter() - t0
         return res
 
-    def _path_fused(self, angles, w, loads, dt_s):
+    def _path_state_in(self, buf):
         """
-        Take the leading warm steps of a path in one compiled call (``step_path``).
+        Copy the state as ``step`` keeps it into the path buffer (``step_path``).
 
-        Returns (steps done, the last one's StepResult if that was the path's last step else
-        None, sub-steps not converged, their iterations).
+        Not needed when the last step was a path's: then the kernel left every value of it
+        in place, and the state tuples, never changed in place, say so.  The previous step's
+        first, since it may be the buffer's current x.
         """
-        solver = self.model.solver
-        if not (self._state is not None and self._geo is not None and solver.use_kernel
-                and getattr(self._warm_solve, "__func__", None) is _COMPILED_WARM_SOLVE):
-            return 0, None, 0, 0
-        sign, load_sign = self._state[2], self._state[3]
-        elastic = self.config.load_distribution == "elastic"
-        buf = self._path_buf
-        if buf is None:
-            buf = self._path_buffers(elastic)
-        consts, par = self._step_constants(solver, sign)
-        # The state as ``step`` keeps it, into the model's own buffer unless it is there
-        # already (the last step was a path's); the previous step's first, since it may be
-        # the buffer's current x.
+        v = buf.views
         x, u = self._state[0], self._state[1]
         if self._prev is not None:
             xp, up, fp, dp = self._prev
         else:
             xp, up, fp, dp = x, u, self._forces, 0.0
-        v = buf["views"]
-        if not (x is v[0] and xp is v[1] and fp is v[3] and self._forces is v[2]
-                and self.azimuth is v[4] and self.ratio is v[5] and self._active is v[6]):
-            v[1][:] = xp
-            v[3][:] = fp
-            v[8][:] = up
-            v[0][:] = x
-            v[2][:] = self._forces
-            v[4][:] = self.azimuth
-            v[5][:] = self.ratio
-            v[6][:] = self._active
+        v[1][:] = xp
+        v[3][:] = fp
+        v[8][:] = up
+        v[0][:] = x
+        v[2][:] = self._forces
+        v[4][:] = self.azimuth
+        v[5][:] = self.ratio
+        v[6][:] = self._active
         v[7][:] = u
-        state = buf["state"]
-        state[16 * self.n] = dp
-        st, cfg = solver.settings, self.config.solver
-        settings = buf["settings"]
+        buf.state[16 * self.n] = dp
+
+    def _path_settings(self, buf, key):
+        """Write ``kernel.warm_steps``' settings and constants of ``key`` (``step_path``)."""
+        sign, load_sign, solver, st, cfg, disp_limit = key[:6]
+        consts, buf.par = self._step_constants(solver, sign)
+        buf.coef_s, buf.coef_n = consts[4], consts[5]
+        settings = buf.settings
         settings[0] = sign
         settings[1] = load_sign
         settings[2] = st.max_iterations
         settings[3] = st.max_active_set_changes
         settings[4] = cfg.realtime_max_iterations or -1
         settings[5] = st.max_step_rate
-        settings[6] = self.nut_angle
         settings[11] = cfg.tolerance
         settings[12] = cfg.substep_tolerance
-        settings[13] = solver.disp_limit
-        result = buf["result"]
-        blk, groups = kernel.warm_steps(state, v[6], angles, w, loads, par, buf["epar"],
-                                        consts[4], consts[5], *self._work, settings, result)
-        done = int(result[0])
-        k = angles.shape[0]
-        if done:
-            # ``step``'s bookkeeping of the steps done: the state is the buffer's (views
-            # into it; a copy of this model copies them, see __copy__).
-            self.nut_angle = float(angles[done - 1])
-            for _ in range(done):
-                self.time += dt_s       # as ``step`` sums it, step by step
-            u, up = (v[7], v[8]) if elastic else (float(v[7][0]), float(v[8][0]))
-            self._prev = (v[1], up, v[3], float(state[16 * self.n]))
-            self._state = (v[0], u, sign, load_sign)
-            self._forces, self.azimuth, self.ratio, self._active = v[2], v[4], v[5], v[6]
-        missed = int(result[9])
-        if done < k:
-            return done, None, missed, int(result[10])
-        rear, front = groups[0].tolist(), groups[1].tolist()
-        loss_sum, torque_sum, b2b_sum, load_max = result[5:9].tolist()
-        res = self._result(float(w[k - 1]), float(loads[k - 1]), loss_sum, torque_sum,
-                           b2b_sum, load_max, bool(result[1]), int(result[3]), blk[1],
-                           blk[2], blk[4], blk[8:12].T, blk[5],
-                           _groups(rear, front, blk[7, :len(rear)].tolist()),
-                           time.perf_counter())
-        return done, res, missed, int(result[10] - result[3])
+        settings[13] = disp_limit
+        buf.key = key
 
     def _path_buffers(self, elastic):
         """Make ``kernel.warm_steps``' buffers of this model and views into its state."""
@@ -284,13 +315,30 @@ class _PathSteps:
         settings[9] = -1.0 if self._preload else self.config.solver.min_axial_load_n
         settings[10] = self.max_axial_load_n
         settings[14] = self.model.ball.hertz[0].coef_delta_m_per_n23
-        self._path_buf = {
-            "state": state, "views": views, "settings": settings,
-            "result": np.zeros(kernel.RESULT_SIZE),
-            "epar": kernel.pack_elastic_constants(self.config.geometry.lead_m,
-                                                  self.config.elastic) if elastic
-            else np.zeros(0)}
-        return self._path_buf
+        buf = self._path_buf = _PathBuffers()
+        buf.state, buf.views, buf.settings, buf.elastic = state, views, settings, elastic
+        buf.tail = state[16 * n:16 * n + (1 if elastic else 3)]
+        buf.result = np.zeros(kernel.RESULT_SIZE)
+        buf.epar = kernel.pack_elastic_constants(self.config.geometry.lead_m,
+                                                 self.config.elastic) if elastic else np.zeros(0)
+        return buf
+
+
+class _PathBuffers:
+    """
+    ``kernel.warm_steps``' arrays of one model, and what ``step_path`` keeps between calls.
+
+    ``key``: what the settings and packed constants were written for; ``last_state``,
+    ``last_prev``: the model's state tuples as the last path call left them (views into
+    ``state``).
+    """
+
+    __slots__ = ("state", "views", "settings", "result", "epar", "elastic", "key", "par",
+                 "coef_s", "coef_n", "last_state", "last_prev", "tail")
+
+    def __init__(self):
+        """Nothing written yet: the first call writes the settings and the state."""
+        self.key = self.last_state = self.last_prev = None
 
 
 class _WarmStep:
@@ -357,7 +405,8 @@ class _WarmStep:
         rear, front = groups[0].tolist(), groups[1].tolist()
         return self._result(omega_n, axial_load_n, loss_sum, torque_sum, b2b_sum, load_max,
                             bool(ok), iterations, blk[1], blk[2], blk[4], blk[8:12].T, blk[5],
-                            _groups(rear, front, blk[7, :len(rear)].tolist()), t0), iterations
+                            blk[6].copy(), _groups(rear, front, blk[7, :len(rear)].tolist()),
+                            t0), iterations
 
     def _warm_solve_numpy(self, d_psi, centres, sign, axial_load_n, scale, pair_idx, rear, front,
                           budget, elastic, tol):
@@ -672,12 +721,14 @@ class WholeScrew(_WarmStep, _PathSteps):
         return self._result(omega_n, axial_load_n, loss_sum, torque_sum, b2b_sum, load_max,
                             bool(sol.converged), sol.iterations, phi, theta,
                             self.ratio * omega_n, t["load"].copy(), -t["axial"],
+                            self._forces.copy(),
                             _groups(rear[act].tolist(), front[act].tolist(),
                                     sol.forces[act].tolist()), t0)
 
     def _result(self, omega_n, axial_load_n, loss_sum, torque_sum, b2b_sum, load_max,
-                converged, iterations, phi, theta, omega_b, loads, ball_axial, groups, t0):
-        """Build the StepResult from a solved step's sums and per-ball arrays (owned)."""
+                converged, iterations, phi, theta, omega_b, loads, ball_axial, forces, groups,
+                t0):
+        """Build the StepResult from a step's sums and arrays (owned); t0 None: untimed."""
         b = self.model.ball
         abs_w = abs(omega_n)
         groove_loss = loss_sum * abs_w
@@ -685,20 +736,15 @@ class WholeScrew(_WarmStep, _PathSteps):
         torque = torque_sum - axial_load_n * b.r_gear
         loss = groove_loss + b2b_loss
         drive = omega_n * torque
+        # Positional, in the order of StepResult's fields: keywords cost 0.7 us more a call.
         return StepResult(
-            t_s=self.time, nut_angle_rad=self.nut_angle, nut_velocity_rad_s=omega_n,
-            axial_load_n=axial_load_n, torque_total_nm=torque,
-            torque_b2g_nm=groove_loss / omega_n, torque_b2b_nm=b2b_loss / omega_n,
-            drive_power_w=drive, loss_w=loss, converged=converged,
-            power_balance_error=abs(drive - loss) / max(loss, _TINY),
-            azimuth_rad=phi, theta_rad=theta, omega_b_rad_s=omega_b,
-            loads_n=loads, b2b_forces_n=self._forces.copy(),
-            groups=groups, ball_axial_loads_n=ball_axial,
+            self.time, self.nut_angle, omega_n, axial_load_n, torque, groove_loss / omega_n,
+            b2b_loss / omega_n, drive, loss, converged, abs(drive - loss) / max(loss, _TINY),
+            phi, theta, omega_b, loads, forces, groups, ball_axial,
             # Per contact only for a solution: an unconverged iterate's loads mean nothing,
             # and its load |W| already passed the range check in ``step``.
-            in_load_range=bool(not converged or load_max <= self.max_contact_load_n),
-            iterations=iterations,
-            solve_time_s=time.perf_counter() - t0)
+            bool(not converged or load_max <= self.max_contact_load_n), iterations,
+            0.0 if t0 is None else time.perf_counter() - t0)
 
 
 def _groups(rear, front, forces):

@@ -172,3 +172,92 @@ def test_step_path_returns_python_numbers(model, config):
                  "loss_w", "power_balance_error"):
         assert type(getattr(r, name)) is float, name
     assert type(r.iterations) is int and type(r.converged) is bool
+
+
+@pytest.mark.parametrize("by_path", [False, True])
+def test_each_answer_field_holds_what_its_name_says(model, config, by_path):
+    """StepResult is built positionally: each field read back against its own quantity."""
+    screw = WholeScrew(config, model)
+    for steps in _paths(20):
+        if by_path:
+            r = screw.step_path(*zip(*steps), DT_S)
+        else:
+            for j, (a, w, f) in enumerate(steps):
+                r = screw.step(a, w, f, DT_S, substep=j < len(steps) - 1)
+        if r.n_groups:
+            break       # the first answer with a B2B group: every field has a value to show
+    a, w, f = steps[-1]
+    assert (r.t_s, r.nut_angle_rad, r.nut_velocity_rad_s, r.axial_load_n) == (
+        screw.time, a, w, f)
+    assert r.converged is True and r.in_load_range is True and r.iterations >= 1
+    assert r.torque_b2g_nm * w + r.torque_b2b_nm * w == pytest.approx(r.loss_w, rel=1e-12)
+    assert r.drive_power_w == w * r.torque_total_nm
+    assert r.power_balance_error == abs(r.drive_power_w - r.loss_w) / r.loss_w
+    assert r.n_groups >= 1 and r.torque_b2b_nm > 0.0
+    assert [len(ids) for ids, _ in r.groups] == [len(forces) + 1 for _, forces in r.groups]
+    n = screw.n
+    np.testing.assert_array_equal(r.b2b_forces_n, screw._forces)
+    np.testing.assert_array_equal(r.omega_b_rad_s, screw.ratio * w)
+    assert np.all(np.abs(np.diff(np.sort(r.azimuth_rad))) > 0.0)   # track azimuths
+    assert np.all(np.abs(r.theta_rad) < 1.0)                        # contact angle deviations
+    assert r.azimuth_rad.shape == r.theta_rad.shape == r.ball_axial_loads_n.shape == (n,)
+    assert r.loads_n.shape == (n, 4) and np.all(r.loads_n >= 0.0)
+    assert r.ball_axial_loads_n.sum() == pytest.approx(f, rel=1e-6)
+    assert 0.0 < r.solve_time_s < 10.0
+
+
+def test_an_answer_keeps_its_arrays_when_the_model_steps_on(model, config):
+    """A path's state lives in the model's buffer, stepped in place: no answer shares it."""
+    screw = WholeScrew(config, model)
+    paths = _paths(12)
+    for steps in paths[:10]:
+        r = screw.step_path(*zip(*steps), DT_S)
+    kept = {name: np.copy(getattr(r, name)) for name in (
+        "azimuth_rad", "theta_rad", "omega_b_rad_s", "loads_n", "b2b_forces_n",
+        "ball_axial_loads_n")}
+    for steps in paths[10:]:
+        screw.step_path(*zip(*steps), DT_S)
+    for name, values in kept.items():
+        np.testing.assert_array_equal(getattr(r, name), values, err_msg=name)
+    assert not np.array_equal(screw._forces, kept["b2b_forces_n"])
+
+
+def test_the_answer_builder_puts_each_value_in_its_field(model, config):
+    """``_result`` passes StepResult's fields by position: each lands under its name."""
+    screw = WholeScrew(config, model)
+    b = model.ball
+    arrays = [np.full(3, float(i)) for i in range(6)]
+    groups = [((1, 2), (0.5,))]
+    r = screw._result(2.0, 3.0, 5.0, 7.0, 11.0, 0.0, True, 13, *arrays, groups, 0.0)
+    torque = 7.0 - 3.0 * b.r_gear
+    loss = 5.0 * 2.0 + b.mu * 11.0 * 2.0
+    expected = dict(
+        t_s=screw.time, nut_angle_rad=screw.nut_angle, nut_velocity_rad_s=2.0, axial_load_n=3.0,
+        torque_total_nm=torque, torque_b2g_nm=5.0, torque_b2b_nm=b.mu * 11.0,
+        drive_power_w=2.0 * torque, loss_w=loss, converged=True,
+        power_balance_error=abs(2.0 * torque - loss) / loss, in_load_range=True,
+        iterations=13)
+    for name, value in expected.items():
+        assert getattr(r, name) == value, name
+    for name, value in zip(("azimuth_rad", "theta_rad", "omega_b_rad_s", "loads_n",
+                            "ball_axial_loads_n", "b2b_forces_n"), arrays):
+        assert getattr(r, name) is value, name
+    assert r.groups is groups and r.solve_time_s > 0.0
+    assert (r.substeps_not_converged, r.substep_iterations) == (0, 0)
+
+
+@pytest.mark.parametrize("form", [list, tuple, np.array, lambda c: np.array(c)[:, None]])
+def test_step_path_reads_its_points_in_any_form(model, config, form):
+    """Lists (the runner's), tuples, arrays and nested columns give the same answers."""
+    paths = _paths(8)
+    ref = _by_path(WholeScrew(config, model), paths)
+    screw = WholeScrew(config, model)
+    for steps, r in zip(paths, ref):
+        q = screw.step_path(*(form(c) for c in zip(*steps)), DT_S)
+        _same(r, q)
+    one = WholeScrew(config, model)
+    for steps, r in zip(paths, ref):      # a path of one point may be given as numbers
+        for j, (a, w, f) in enumerate(steps):
+            q = one.step_path(a, w, f, DT_S) if j == len(steps) - 1 else one.step(
+                a, w, f, DT_S, substep=True)
+        _same(r, q)
