@@ -195,3 +195,17 @@ def test_lead_errors_kernel_equals_numpy(model, numpy_model):
     fast = run_whole_screw(cfg, n_steps=12, screw=WholeScrew(cfg, model))[0]
     ref = run_whole_screw(cfg, n_steps=12, screw=WholeScrew(cfg, numpy_model))[0]
     _assert_same_run(fast, ref)      # which checks the invariants of every step
+
+
+def test_more_balls_than_one_chunk_of_lanes_equal_numpy():
+    # The kernel takes the balls 64 lanes at a time; past one chunk the Newton direction
+    # reads the Jacobian copied out of the lanes, not the lanes themselves.
+    cfg = load_ball_screw(overrides={"solver": {"tolerance": COMPARE_TOLERANCE},
+                                     "track": {"n_balls": 90, "loaded_turns": 4.9}})
+    fast = WholeScrew(cfg, ScrewModel(cfg))
+    ref_model = ScrewModel(cfg)
+    ref_model.solver.use_kernel = False
+    ref = WholeScrew(cfg, ref_model)
+    assert fast.n == ref.n == 90 > kernel._CHUNK
+    _assert_same_run(run_whole_screw(cfg, n_steps=12, screw=fast)[0],
+                     run_whole_screw(cfg, n_steps=12, screw=ref)[0])
