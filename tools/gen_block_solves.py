@@ -1,28 +1,30 @@
 """
-Write the kernel's generated block solves: ``_lanes_gauss6``, ``_block_solve7``, ``_block_solve6``.
+Write the kernel's generated block solves: ``_lanes_gauss6(_acc)``, ``_block_solve7``, ``6``.
 
-``_lanes_gauss6`` solves the free balls' 6 x 6 Newton blocks across the lanes.
+``_lanes_gauss6`` solves the free balls' 6 x 6 Newton blocks across the lanes
+(``_lanes_gauss6_acc`` the same, its blocks read where the evaluation left them).
 The function is Gaussian elimination with partial pivoting, written out for one lane with
 the lane's 48 matrix and right-hand-side values in local variables, inside one loop over
 the lanes.  LLVM then keeps the values in vector registers and vectorises the loop, eight
 lanes per instruction.  Written as loops over rows of lanes it loaded and stored a row for
-every multiply-subtract: 2.3 us against 0.8 us for 40 lanes (bench of this session, same
+every multiply-subtract: 2.3 us against 0.8 us for 40 lanes (measured in one run, the
 results bit for bit).  Loops over the rows cannot keep the values in registers, so the code
 is generated: the elimination stays readable here, as a loop nest.
 
 ``_block_solve7`` and ``_block_solve6`` solve one block of a B2B chain (7 x 7 with nine
 right-hand-side columns, a chain's last ball 6 x 6 with two), written out in the same way
 for one system: with every index a constant, the values stay in registers and the row
-exchanges are branches (``compiled.gauss_solve``'s loops: 1060 cycles per 7 x 7 block,
-measured with the CPU's cycle counter in a warm 20 rev/s step).  They leave d and w as they
-were and return False where a pivot is zero or not finite; the caller then calls
-``gauss_solve``, whose retry needs them.
+exchanges are branches (1030 cycles per 7 x 7 block with ``compiled.gauss_solve``'s
+loops, 470 written out, measured with the CPU's cycle counter in a warm 20 rev/s step).
+They leave d and w as they were and return False where a pivot is zero or not finite;
+the caller then calls ``gauss_solve``, whose retry needs them.
 
-The arithmetic is ``compiled.gauss_eliminate``'s, term for term: the pivot is the first row
-of largest magnitude, rows are exchanged as selects, each row below is reduced by
-``factor = a[r, col] / pivot`` (as ``a[r, col] * (1 / pivot)``), and the back-substitution
-sums in the same order.  A lane whose pivot is zero or not finite is flagged; the caller
-solves it again with ``compiled.gauss_solve`` (its Levenberg-Marquardt retry).
+The arithmetic is ``compiled.gauss_eliminate``'s, term for term: the pivot is the first
+row of largest magnitude, rows are exchanged (as selects across the lanes), each row
+below is reduced by ``factor = a[r, col] / pivot`` (as ``a[r, col] * (1 / pivot)``), and
+the back-substitution sums in the same order.  A lane whose pivot is zero or not finite
+is flagged; the caller solves it again with ``compiled.gauss_solve`` (its
+Levenberg-Marquardt retry).
 
     .venv/bin/python tools/gen_block_solves.py           # rewrite the functions in kernel.py
     .venv/bin/python tools/gen_block_solves.py --check   # exit 1 when they are out of date
@@ -54,6 +56,26 @@ def _acc_row(r, j):
         return f"rows[{r} * _CHUNK + i] * {'inv_s' if r < 3 else 'inv_rs'}"
     col = 6 if j == 7 else j
     return f"rows[(_ACC_JAC + {7 * col + r}) * _CHUNK + i]"
+
+
+def _back_substitution(w, indent, n, cols, rhs):
+    """
+    Emit the back-substitution of an eliminated n x n system (``gauss_eliminate``'s).
+
+    The matrix is a{r}{j}; rhs(r, c) names row r's right-hand side c, overwritten by the
+    solution; every sum in the order k = col + 1 .. n - 1.
+    """
+    w(f"{indent}# back-substitution")
+    for col in range(n - 1, -1, -1):
+        w(f"{indent}inv = 1.0 / a{col}{col}")
+        for c in cols:
+            if col < n - 1:
+                w(f"{indent}acc = {rhs(col, c)}")
+                for k in range(col + 1, n):
+                    w(f"{indent}acc -= a{col}{k} * {rhs(k, c)}")
+                w(f"{indent}{rhs(col, c)} = acc * inv")
+            else:
+                w(f"{indent}{rhs(col, c)} = {rhs(col, c)} * inv")
 
 
 def lane_solve_source(from_acc=False):
@@ -113,17 +135,7 @@ def lane_solve_source(from_acc=False):
             w(f"        fac = a{r}{col} * inv")
             for j in range(col + 1, 8):
                 w(f"        a{r}{j} -= fac * a{col}{j}")
-    w("        # back-substitution")
-    for col in range(N - 1, -1, -1):
-        w(f"        inv = 1.0 / a{col}{col}")
-        for jr in RHS:
-            if col < N - 1:
-                w(f"        acc = a{col}{jr}")
-                for k in range(col + 1, N):
-                    w(f"        acc -= a{col}{k} * a{k}{jr}")
-                w(f"        a{col}{jr} = acc * inv")
-            else:
-                w(f"        a{col}{jr} = a{col}{jr} * inv")
+    _back_substitution(w, "        ", N, RHS, lambda r, c: f"a{r}{c}")
     for r in range(N):
         for q, jr in enumerate(RHS):
             w(f"        fw[(_FB_OUT + {2 * r + q}) * _CHUNK + i] = a{r}{jr}")
@@ -177,17 +189,7 @@ def block_solve_source(name, n, cols):
                 w(f"        a{r}{j} -= fac * a{col}{j}")
             for c in cols:
                 w(f"        b{r}{c} -= fac * b{col}{c}")
-    w("    # back-substitution")
-    for col in range(n - 1, -1, -1):
-        w(f"    inv = 1.0 / a{col}{col}")
-        for c in cols:
-            if col < n - 1:
-                w(f"    acc = b{col}{c}")
-                for k in range(col + 1, n):
-                    w(f"    acc -= a{col}{k} * b{k}{c}")
-                w(f"    b{col}{c} = acc * inv")
-            else:
-                w(f"    b{col}{c} = b{col}{c} * inv")
+    _back_substitution(w, "    ", n, cols, lambda r, c: f"b{r}{c}")
     for r in range(n):
         for c in cols:
             w(f"    w[{r}, {c}] = b{r}{c}")
