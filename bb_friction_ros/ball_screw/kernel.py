@@ -632,11 +632,10 @@ def evaluate_lanes(x, u, u_ball, centres, sign, cst, k_load, k_axis, on_nut, coe
     n_azimuth, dt, dh).  Writes res (N, 6) = [force, moment / R_B] / scale, jac (N, 6, 7),
     dax (N, 7) = d(axial) / scale (only with ``want_jac``; jac and dax of length 0 leave
     them in work's acc rows instead, N <= _CHUNK: ``newton_direction``); terms (N, 10) =
-    force (3),
-    moment (3), loss, nut torque, axial force, 0; per_contact (N, 4, 3) = load, loss and the
-    contact angle, which only ``contact_angles`` writes, on demand (no output of the model
-    reads it: 148 atan2 per solve at N = 37).  work (WORK_SIZE,): the passes' work arrays
-    (see above).  Returns the summed axial force [N].
+    force (3), moment (3), loss, nut torque, axial force, 0; per_contact (N, 4, 3) = load,
+    loss and the contact angle, which only ``contact_angles`` writes, on demand (no output
+    of the model reads it: 148 atan2 per solve at N = 37).  work (WORK_SIZE,): the passes'
+    work arrays (see above).  Returns the summed axial force [N].
     """
     lam, r_b, ca, sa, ell, mu, free, r_gear = (cst[0], cst[1], cst[2], cst[3], cst[4],
                                                cst[5], cst[6], cst[7])
