@@ -40,7 +40,8 @@ import numpy as np
 from bb_friction_ros.ball_screw.single_ball import LENGTH_SCALE_M
 
 from bb_friction_ros.compiled import HAVE_NUMBA  # noqa: F401  (re-exported: solver, tests)
-from bb_friction_ros.compiled import back_substitute_block, borrowed, carved, gauss_solve
+from bb_friction_ros.compiled import back_substitute_block, bicubic_patch, bicubic_values
+from bb_friction_ros.compiled import borrowed, carved, gauss_solve
 from bb_friction_ros.compiled import jit as _jit
 
 _TINY = 1e-300
@@ -274,40 +275,13 @@ def _contact_maps(coef_s, coef_n, m, n_pol, n_az, dtm, dhm, want_jac, ev, ek, em
             if j0 > n_az - 1:
                 j0 = n_az - 1
             sy = yy - j0
-            # cf[cell, ...] read in place: a view of the cell per contact cost an
-            # incref and a decref (atomic) each, a fifth of the step with the other views.
-            cell = i0 * n_az + j0
-            sy2 = sy * sy
-            sy3 = sy2 * sy
-            sx2 = sx * sx
-            sx3 = sx2 * sx
-            for o in range(4):
-                # Power j of s_h at cf[cell, j, 4 o + i]; then the polynomial in s_t.
-                b = 4 * o
-                qv0 = (cf[cell, 0, b] + cf[cell, 1, b] * sy
-                       + cf[cell, 2, b] * sy2 + cf[cell, 3, b] * sy3)
-                qv1 = (cf[cell, 0, b + 1] + cf[cell, 1, b + 1] * sy
-                       + cf[cell, 2, b + 1] * sy2 + cf[cell, 3, b + 1] * sy3)
-                qv2 = (cf[cell, 0, b + 2] + cf[cell, 1, b + 2] * sy
-                       + cf[cell, 2, b + 2] * sy2 + cf[cell, 3, b + 2] * sy3)
-                qv3 = (cf[cell, 0, b + 3] + cf[cell, 1, b + 3] * sy
-                       + cf[cell, 2, b + 3] * sy2 + cf[cell, 3, b + 3] * sy3)
-                emk[(_VAL + o) * _CHUNK + i] = qv0 + qv1 * sx + qv2 * sx2 + qv3 * sx3
-                # p enters the loss only, which no equation holds: its derivatives (rows
-                # _DVT + 3, _DVH + 3) are not needed.
-                if not want_jac or o == 3:
-                    continue
-                qd0 = cf[cell, 1, b] + 2.0 * cf[cell, 2, b] * sy + 3.0 * cf[cell, 3, b] * sy2
-                qd1 = (cf[cell, 1, b + 1]
-                       + 2.0 * cf[cell, 2, b + 1] * sy + 3.0 * cf[cell, 3, b + 1] * sy2)
-                qd2 = (cf[cell, 1, b + 2]
-                       + 2.0 * cf[cell, 2, b + 2] * sy + 3.0 * cf[cell, 3, b + 2] * sy2)
-                qd3 = (cf[cell, 1, b + 3]
-                       + 2.0 * cf[cell, 2, b + 3] * sy + 3.0 * cf[cell, 3, b + 3] * sy2)
-                dv_t = (qv1 + 2.0 * qv2 * sx + 3.0 * qv3 * sx2) / dtm
-                dv_h = (qd0 + qd1 * sx + qd2 * sx2 + qd3 * sx3) / dhm
-                emk[(_DVT + o) * _CHUNK + i] = dv_t
-                emk[(_DVH + o) * _CHUNK + i] = dv_h
+            # cf read in place: a view of the cell per contact cost an incref and a decref
+            # (atomic) each, a fifth of the step with the other views.
+            if want_jac:
+                bicubic_patch(cf, i0 * n_az + j0, sx, sy, dtm, dhm, emk, _VAL * _CHUNK + i,
+                              _CHUNK)
+            else:
+                bicubic_values(cf, i0 * n_az + j0, sx, sy, emk, _VAL * _CHUNK + i, _CHUNK)
 
 
 @_jit

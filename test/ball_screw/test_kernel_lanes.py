@@ -8,7 +8,8 @@ of the kernel equal the numpy model's exactly, test_fast_solver).  The free ball
 Newton blocks, solved eight lanes at a time, are checked against the scalar Gauss solve,
 including the lanes that need a row exchange and a singular block (its Levenberg-Marquardt
 retry); so are the written-out solves of a chain's blocks.  These solves are generated
-code, and must be what their generator writes.
+code, and must be what their generator writes.  The friction map's patch, written as vector
+code, is checked against its plain reference and for writing its rows and nothing else.
 """
 
 import copy
@@ -32,6 +33,15 @@ RNG = np.random.default_rng(36)
 def _atan2_all(y, x, out):
     for i in range(y.shape[0]):
         out[i] = kernel.atan2_poly(y[i], x[i])
+
+
+@compiled.jit
+def _patches(cf, cells, sx, sy, dt, dh, slopes, out, stride):
+    for i in range(cells.shape[0]):
+        if slopes:
+            compiled.bicubic_patch(cf, cells[i], sx[i], sy[i], dt, dh, out, i, stride)
+        else:
+            compiled.bicubic_values(cf, cells[i], sx[i], sy[i], out, i, stride)
 
 
 @compiled.jit(exact=True)
@@ -192,3 +202,27 @@ def test_free_blocks_read_in_place_from_the_evaluation_rows_equal_those_copied_o
     ks = free[:, 1]
     np.testing.assert_array_equal(xs_rows[ks, :6, 7:9], xs_arrays[ks, :6, 7:9])
     assert np.isfinite(xs_rows[ks, :6, 7:9]).all()
+
+
+@pytest.mark.parametrize("slopes", [True, False])
+def test_vector_map_patch_equals_its_reference_and_writes_only_its_rows(slopes):
+    # A table of cells of 4 x 16 coefficients spanning magnitudes, points anywhere in a cell.
+    n_cells, n, stride = 50, 40, 48
+    cf = RNG.standard_normal((n_cells, 4, 16)) * 10.0 ** RNG.uniform(-3, 3, (n_cells, 4, 16))
+    cells = RNG.integers(0, n_cells, n)
+    sx, sy = RNG.uniform(0, 1, n), RNG.uniform(0, 1, n)
+    dt, dh = 0.0175, 0.0349
+    out = np.full(12 * stride, np.nan)
+    ref = np.full(12 * stride, np.nan)
+    _patches(cf, cells, sx, sy, dt, dh, slopes, out, stride)
+    for i in range(n):
+        compiled.patch_reference(cf, cells[i], sx[i], sy[i], dt, dh, ref, i, stride, slopes)
+    rows = [0, 1, 2, 3] + ([4, 5, 6, 8, 9, 10] if slopes else [])
+    got, want = out.reshape(12, stride), ref.reshape(12, stride)
+    # Every coefficient's term bounds the rounding: a few ulp of the largest term.
+    scale = np.abs(cf[cells]).max(axis=(1, 2)) / min(dt, dh)
+    for r in rows:
+        assert np.all(np.abs(got[r, :n] - want[r, :n]) <= 8 * np.finfo(float).eps * scale), r
+    # Nothing else written: the other rows, and the lanes past the last.
+    untouched = [r for r in range(12) if r not in rows]
+    assert np.all(np.isnan(got[untouched])) and np.all(np.isnan(got[:, n:]))
