@@ -135,9 +135,12 @@ def atan2_poly(y, x):
     swap = ay > ax
     num = ax if swap else ay
     den = ay if swap else ax
-    z = num / den if den > 0.0 else 0.0
-    red = z > 0.66
-    zz = (z - 1.0) / (z + 1.0) if red else z
+    # z = num / den; above 0.66 the reduced argument (z - 1) / (z + 1), written with one
+    # division instead of two (divisions bound the kinematics pass: measured).
+    red = num > 0.66 * den
+    top = num - den if red else num
+    bottom = num + den if red else den
+    zz = top / bottom if bottom > 0.0 else 0.0
     z2 = zz * zz
     p = (((_AT_P[0] * z2 + _AT_P[1]) * z2 + _AT_P[2]) * z2 + _AT_P[3]) * z2 + _AT_P[4]
     q = ((((z2 + _AT_Q[0]) * z2 + _AT_Q[1]) * z2 + _AT_Q[2]) * z2 + _AT_Q[3]) * z2 + _AT_Q[4]
