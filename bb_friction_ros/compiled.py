@@ -69,6 +69,12 @@ def _import_numba():
 
 _THIS_FILE = os.path.abspath(__file__)
 _PACKAGE_DIR = os.path.dirname(_THIS_FILE)
+# A source checkout (setup.py beside the package): its tests, benches and tools compile
+# functions that call the package's kernels, and numba keys their caches on their own file.
+_CHECKOUT_DIR = os.path.dirname(_PACKAGE_DIR)
+_CHECKOUT_DIRS = tuple(os.path.join(_CHECKOUT_DIR, d) + os.sep
+                       for d in ("test", "bench", "tools"))
+_IS_CHECKOUT = os.path.isfile(os.path.join(_CHECKOUT_DIR, "setup.py"))
 
 
 def _file_digest(path):
@@ -77,26 +83,44 @@ def _file_digest(path):
         return hashlib.sha256(f.read()).hexdigest()
 
 
+def _package_digest():
+    """sha256 of every module of the package (the key of a checkout's test helpers)."""
+    h = hashlib.sha256()
+    for root, dirs, files in os.walk(_PACKAGE_DIR):
+        dirs.sort()
+        for name in sorted(files):
+            if name.endswith(".py"):
+                path = os.path.join(root, name)
+                h.update(os.path.relpath(path, _PACKAGE_DIR).encode())
+                h.update(_file_digest(path).encode())
+    return h.hexdigest()
+
+
 def _install_dependency_locator(caching):
     """
     Make numba key this package's caches on their own file and on this one.
 
     A locator put first in numba's list: for a function defined in this package it finds the
     cache where numba would (``NUMBA_CACHE_DIR`` or ``__pycache__``) and extends numba's own
-    source stamp with this file's digest.  Functions outside the package are left to numba.
-    Returns False if this numba has no such locator list (the hazard is then numba's).
+    source stamp with this file's digest.  A function of a source checkout's tests, benches
+    or tools may call any kernel: its stamp is extended with every module's digest (a test
+    helper that kept a kernel's old compiled code passed on code that had changed: seen).
+    Other functions are left to numba.  Returns False if this numba has no such locator
+    list (the hazard is then numba's).
     """
     impl = getattr(caching, "CacheImpl", None) or getattr(caching, "_CacheImpl", None)
     classes = getattr(impl, "_locator_classes", None)
     if not isinstance(classes, list):
         return False
     shared = _file_digest(_THIS_FILE)
+    whole = []      # _package_digest(), computed when a checkout's helper first needs it
 
     class _DependencyLocator:
         """numba's locator for the function, its source stamp extended (see above)."""
 
-        def __init__(self, inner):
+        def __init__(self, inner, helper=False):
             self._inner = inner
+            self._helper = helper
 
         def ensure_cache_path(self):
             return self._inner.ensure_cache_path()
@@ -105,6 +129,10 @@ def _install_dependency_locator(caching):
             return self._inner.get_cache_path()
 
         def get_source_stamp(self):
+            if self._helper:
+                if not whole:
+                    whole.append(_package_digest())
+                return (self._inner.get_source_stamp(), shared, whole[0])
             return (self._inner.get_source_stamp(), shared)
 
         def get_disambiguator(self):
@@ -112,14 +140,16 @@ def _install_dependency_locator(caching):
 
         @classmethod
         def from_function(cls, py_func, py_file):
-            if not os.path.abspath(py_file).startswith(_PACKAGE_DIR + os.sep):
+            path = os.path.abspath(py_file)
+            helper = _IS_CHECKOUT and path.startswith(_CHECKOUT_DIRS)
+            if not (helper or path.startswith(_PACKAGE_DIR + os.sep)):
                 return None
             for other in classes:
                 if other is cls:
                     continue
                 inner = other.from_function(py_func, py_file)
                 if inner is not None:
-                    return cls(inner)
+                    return cls(inner, helper)
             return None
 
     classes.insert(0, _DependencyLocator)

@@ -182,6 +182,50 @@ def test_a_kernel_never_loads_the_compile_of_another_version_of_the_same_size_an
         assert _run_probe(tmp_path, cache_dir) == (value, 1)
 
 
+_PROBE_HELPER = '''
+from probe_pkg.compiled import jit
+from probe_pkg import kern
+
+
+@jit
+def helper_value():
+    return kern.kernel_value() * 10
+'''
+
+
+@pytest.mark.skipif(not compiled.HAVE_NUMBA, reason="numba not installed")
+def test_a_test_helper_never_loads_a_stale_compile_of_a_kernel_it_calls(tmp_path):
+    """
+    A function of a checkout's tests that calls a kernel recompiles when the kernel changes.
+
+    numba keys its cache on the helper's own file: a test kept passing on the kernel's old
+    machine code.  A probe checkout (setup.py, the package, test/): the kernel's value
+    changed, the helper's value follows, from a fresh compile, then from the cache.
+    """
+    (tmp_path / "setup.py").write_text("")
+    pkg = tmp_path / "probe_pkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    source = Path(compiled.__file__).read_text()
+    (pkg / "compiled.py").write_text(source + "\n\n@jit\ndef probe_value():\n    return 1\n")
+    (tmp_path / "test").mkdir()
+    (tmp_path / "test" / "helper_mod.py").write_text(_PROBE_HELPER)
+    env = dict(os.environ, PYTHONPATH=f"{tmp_path}{os.pathsep}{tmp_path / 'test'}",
+               NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    code = ("import helper_mod; print(helper_mod.helper_value(), "
+            "sum(helper_mod.helper_value.stats.cache_hits.values()))")
+
+    def run():
+        out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                             text=True, check=True, timeout=300)
+        return tuple(int(v) for v in out.stdout.split())
+
+    for add in (0, 5):
+        (pkg / "kern.py").write_text(_PROBE_KERNEL.replace("+ 0", f"+ {add}"))
+        assert run() == (10 * (1 + add), 0)      # compiled afresh: not the stale value
+        assert run() == (10 * (1 + add), 1)      # then from the cache
+
+
 def test_kernel_modules_call_compiled_functions_of_their_own_file_and_compiled_py_only():
     """What makes the cache key above complete: no kernel imports another kernel module."""
     root = Path(compiled.__file__).parent
