@@ -3716,14 +3716,16 @@ def solve_active(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
 @_jit
 def ring_projection(azimuth, separation, loop_length):
     """``whole_screw.isotonic_ring_projection``: PAV on the ring cut at its largest gap."""
-    out = np.empty(azimuth.shape[0])
-    _ring_projection_into(azimuth, separation, loop_length, out)
+    n = azimuth.shape[0]
+    out = np.empty(n)
+    _ring_projection_into(azimuth, separation, loop_length, out, np.empty((3, n)),
+                          np.empty(n, dtype=np.int64))
     return out
 
 
 @_jit
-def _ring_projection_into(azimuth, separation, loop_length, out):
-    """``ring_projection`` into out (N, not azimuth)."""
+def _ring_projection_into(azimuth, separation, loop_length, out, work, counts):
+    """``ring_projection`` into out (N, not azimuth); work (3, N), counts (N,): work."""
     n = azimuth.shape[0]
     worst = np.inf
     best = -np.inf
@@ -3739,11 +3741,12 @@ def _ring_projection_into(azimuth, separation, loop_length, out):
         for i in range(n):
             out[i] = azimuth[i]
         return
-    y = np.empty(n)
+    y = work[0]
+    fitted = work[2]
     for k in range(n):
         j = (k + cut) % n
         y[k] = azimuth[j] + (loop_length if j < cut else 0.0) - k * separation
-    fitted = pool_adjacent_violators(y)
+    _pav_into(y, work[1], counts, fitted)
     for k in range(n):
         j = (k + cut) % n
         out[j] = fitted[k] + k * separation - (loop_length if j < cut else 0.0)
@@ -3753,8 +3756,15 @@ def _ring_projection_into(azimuth, separation, loop_length, out):
 def pool_adjacent_violators(y):
     """L2 projection of y onto non-decreasing sequences (pool-adjacent-violators)."""
     n = y.shape[0]
-    means = np.empty(n)
-    counts = np.empty(n, dtype=np.int64)
+    out = np.empty(n)
+    _pav_into(y, np.empty(n), np.empty(n, dtype=np.int64), out)
+    return out
+
+
+@_jit
+def _pav_into(y, means, counts, out):
+    """``pool_adjacent_violators`` into out (N, not y); means, counts (N,): work."""
+    n = y.shape[0]
     nb = 0
     for i in range(n):
         means[nb] = y[i]
@@ -3766,13 +3776,11 @@ def pool_adjacent_violators(y):
                              + means[nb - 1] * counts[nb - 1]) / c
             counts[nb - 2] = c
             nb -= 1
-    out = np.empty(n)
     k = 0
     for b in range(nb):
         for _ in range(counts[b]):
             out[k] = means[b]
             k += 1
-    return out
 
 
 @_jit
@@ -3954,24 +3962,26 @@ def advance(azimuth, ratio, d_psi, separation, loop_length, track_start, gap_tol
     front = np.empty(n, dtype=np.int64)
     k = _advance_into(azimuth, ratio, d_psi, separation, loop_length, track_start,
                       gap_tolerance, sign, amplitude, cycles, phase, offset, eccentricity,
-                      beta0, np.empty(n), az, phi, theta, centres,
-                      np.empty(n, dtype=np.bool_), idx, rear, front)
+                      beta0, np.empty((4, n)), az, phi, theta, centres,
+                      np.empty(n, dtype=np.bool_), np.empty(n, dtype=np.int64), idx, rear,
+                      front)
     return az, phi, theta, centres, idx[:k], rear[:k], front[:k]
 
 
 @_jit(exact=True)
 def _advance_into(azimuth, ratio, d_psi, separation, loop_length, track_start, gap_tolerance,
-                  sign, amplitude, cycles, phase, offset, eccentricity, beta0, moved, az, phi,
-                  theta, centres, touching, idx, rear, front):
+                  sign, amplitude, cycles, phase, offset, eccentricity, beta0, work, az, phi,
+                  theta, centres, touching, counts, idx, rear, front):
     """
     ``advance`` into the caller's arrays (N,) and centres (N, 4, 2); returns the pair count.
 
-    moved and touching: work.
+    work (4, N), touching and counts (N,): work.
     """
     n = azimuth.shape[0]
+    moved = work[0]
     for i in range(n):
         moved[i] = azimuth[i] + ratio[i] * d_psi
-    _ring_projection_into(moved, separation, loop_length, az)
+    _ring_projection_into(moved, separation, loop_length, az, work[1:], counts)
     for i in range(n):
         phi[i] = track_start + np.mod(az[i] - track_start, loop_length)
     _theta_centres_into(phi, amplitude, cycles, phase, offset, eccentricity, beta0, theta,
@@ -4527,25 +4537,24 @@ def _newton_result(x, u, fhat, ok, it, norm, terms, per_contact, speed, ws):
 
 
 # The warm step's own work arrays (``step_work_size``), after newton's share of ws and wi,
-# in blocks of N values: floats of advance (moved, azimuth, phi, theta: 4, centres: 8),
+# in blocks of N values: floats of advance (its work: 4, azimuth, phi, theta: 3, centres: 8),
 # warm_solve (the guesses' x, u, forces: 2 x 8), _solve_guess (its forces: 1),
 # solve_active_set (f0, forces: 2, terms: 10, per contact: 12, x: 6, u: 1),
 # _warm_step_core (speed, forces, ratio, ring forces: 4), then warm_step's u and previous u;
-# integers of advance
-# (pair index, rear, front, touching: 4), _solve_guess (active: 1), solve_active_set (active,
-# index, rear, front: 4) and _warm_step_core (ring active, active pairs: 2).  A bool array
-# takes one integer per entry.
+# integers of advance (pair index, rear, front, touching, counts: 5), _solve_guess (active:
+# 1), solve_active_set (active, index, rear, front: 4) and _warm_step_core (ring active,
+# active pairs: 2).  A bool array takes one integer per entry.
 _SW_ADVANCE = 0
-_SW_GUESS = 12
-_SW_SOLVE_GUESS = 28
-_SW_SET = 29
-_SW_CORE = 60
-_SW_BLOCKS = 64
+_SW_GUESS = 15
+_SW_SOLVE_GUESS = 31
+_SW_SET = 32
+_SW_CORE = 63
+_SW_BLOCKS = 67
 _SI_ADVANCE = 0
-_SI_SOLVE_GUESS = 4
-_SI_SET = 5
-_SI_CORE = 9
-_SI_BLOCKS = 11
+_SI_SOLVE_GUESS = 5
+_SI_SET = 6
+_SI_CORE = 10
+_SI_BLOCKS = 12
 
 
 @_jit
@@ -4935,7 +4944,7 @@ def _warm_step_core(azimuth, ratio, x, x_prev, f_prev, forces, ring_active, par,
     n = azimuth.shape[0]
     _check_work(n, ws, wi)
     off, io = _step_offsets(n, _SW_ADVANCE, _SI_ADVANCE)
-    moved, off = _carve(ws, off, (n,))
+    work, off = _carve(ws, off, (4, n))
     az, off = _carve(ws, off, (n,))
     phi, off = _carve(ws, off, (n,))
     theta, off = _carve(ws, off, (n,))
@@ -4944,9 +4953,10 @@ def _warm_step_core(azimuth, ratio, x, x_prev, f_prev, forces, ring_active, par,
     rear_w, io = _carve(wi, io, (n,))
     front_w, io = _carve(wi, io, (n,))
     touching, io = _carve_bools(wi, io, n)
+    counts, io = _carve(wi, io, (n,))
     k = _advance_into(azimuth, ratio, d_psi, geo[0], geo[1], track_start, geo[2], sign, geo[3],
-                      geo[4], geo[5], geo[6], geo[7], geo[8], moved, az, phi, theta, centres,
-                      touching, idx_w, rear_w, front_w)
+                      geo[4], geo[5], geo[6], geo[7], geo[8], work, az, phi, theta, centres,
+                      touching, counts, idx_w, rear_w, front_w)
     pair_idx = idx_w[:k]
     rear = rear_w[:k]
     front = front_w[:k]
