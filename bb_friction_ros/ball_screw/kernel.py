@@ -4540,10 +4540,10 @@ def _newton_result(x, u, fhat, ok, it, norm, terms, per_contact, speed, ws):
 # in blocks of N values: floats of advance (its work: 4, azimuth, phi, theta: 3, centres: 8),
 # warm_solve (the guesses' x, u, forces: 2 x 8), _solve_guess (its forces: 1),
 # solve_active_set (f0, forces: 2, terms: 10, per contact: 12, x: 6, u: 1),
-# _warm_step_core (speed, forces, ratio, ring forces: 4), then warm_step's u and previous u;
-# integers of advance (pair index, rear, front, touching, counts: 5), _solve_guess (active:
-# 1), solve_active_set (active, index, rear, front: 4) and _warm_step_core (ring active,
-# active pairs: 2).  A bool array takes one integer per entry.
+# _warm_step_core (speed, forces, ratio, ring forces: 4); integers of advance (pair index,
+# rear, front, touching, counts: 5), _solve_guess (active: 1), solve_active_set (active,
+# index, rear, front: 4) and _warm_step_core (ring active, active pairs: 2).  A bool array
+# takes one integer per entry.
 _SW_ADVANCE = 0
 _SW_GUESS = 15
 _SW_SOLVE_GUESS = 31
@@ -4560,7 +4560,7 @@ _SI_BLOCKS = 12
 @_jit
 def step_work_size(n):
     """Floats and integers of the warm step's work arrays for n balls, after newton's."""
-    return _SW_BLOCKS * n + 2, _SI_BLOCKS * n
+    return _SW_BLOCKS * n, _SI_BLOCKS * n
 
 
 @_jit
@@ -4590,7 +4590,8 @@ def solve_active_set(x, u, f_all, active, centres, sign, cst, k_load, k_axis, on
     else close the open pairs whose rear ball orbits faster, until neither happens.
     f_all: B2B forces per candidate pair in units of ``scale``; budget < 0: no iteration cap.
     Returns (x, u, f_all, active, converged, budget_exhausted, iterations, norm, terms,
-    per_contact); u as in ``newton``.
+    per_contact); u as in ``newton``.  Its arrays are views of ws and wi (``work_arrays``,
+    which it needs), valid until the caller uses them again: for compiled callers only.
     """
     pair_rear = borrowed(pair_rear)
     pair_front = borrowed(pair_front)
