@@ -3694,6 +3694,16 @@ def solve_active(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s,
 def ring_projection(azimuth, separation, loop_length):
     """``whole_screw.isotonic_ring_projection``: PAV on the ring cut at its largest gap."""
     n = azimuth.shape[0]
+    out = np.empty(n)
+    _ring_projection_into(azimuth, separation, loop_length, out, np.empty((3, n)),
+                          np.empty(n, dtype=np.int64))
+    return out
+
+
+@_jit
+def _ring_projection_into(azimuth, separation, loop_length, out, work, counts):
+    """``ring_projection`` into out (N, not azimuth); work (3, N), counts (N,): work."""
+    n = azimuth.shape[0]
     worst = np.inf
     best = -np.inf
     cut = 0
@@ -3705,25 +3715,33 @@ def ring_projection(azimuth, separation, loop_length):
             best = gap
             cut = i + 1
     if worst >= 0.0:
-        return azimuth.copy()
-    y = np.empty(n)
+        for i in range(n):
+            out[i] = azimuth[i]
+        return
+    y = work[0]
+    fitted = work[2]
     for k in range(n):
         j = (k + cut) % n
         y[k] = azimuth[j] + (loop_length if j < cut else 0.0) - k * separation
-    fitted = pool_adjacent_violators(y)
-    out = np.empty(n)
+    _pav_into(y, work[1], counts, fitted)
     for k in range(n):
         j = (k + cut) % n
         out[j] = fitted[k] + k * separation - (loop_length if j < cut else 0.0)
-    return out
 
 
 @_jit
 def pool_adjacent_violators(y):
     """L2 projection of y onto non-decreasing sequences (pool-adjacent-violators)."""
     n = y.shape[0]
-    means = np.empty(n)
-    counts = np.empty(n, dtype=np.int64)
+    out = np.empty(n)
+    _pav_into(y, np.empty(n), np.empty(n, dtype=np.int64), out)
+    return out
+
+
+@_jit
+def _pav_into(y, means, counts, out):
+    """``pool_adjacent_violators`` into out (N, not y); means, counts (N,): work."""
+    n = y.shape[0]
     nb = 0
     for i in range(n):
         means[nb] = y[i]
@@ -3735,13 +3753,11 @@ def pool_adjacent_violators(y):
                              + means[nb - 1] * counts[nb - 1]) / c
             counts[nb - 2] = c
             nb -= 1
-    out = np.empty(n)
     k = 0
     for b in range(nb):
         for _ in range(counts[b]):
             out[k] = means[b]
             k += 1
-    return out
 
 
 @_jit
@@ -3753,9 +3769,21 @@ def ring_pairs(azimuth, separation, loop_length, gap_tolerance, sign):
     it) and runs against the loop for sign < 0.
     """
     n = azimuth.shape[0]
+    idx = np.empty(n, dtype=np.int64)
+    rear = np.empty(n, dtype=np.int64)
+    front = np.empty(n, dtype=np.int64)
+    k = _ring_pairs_into(azimuth, separation, loop_length, gap_tolerance, sign,
+                         np.empty(n, dtype=np.bool_), idx, rear, front)
+    return idx[:k], rear[:k], front[:k]
+
+
+@_jit
+def _ring_pairs_into(azimuth, separation, loop_length, gap_tolerance, sign, touching, idx, rear,
+                     front):
+    """``ring_pairs`` into the caller's arrays (N,) (touching: work); returns the pair count."""
+    n = azimuth.shape[0]
     best = -np.inf
     start = 0
-    touching = np.empty(n, dtype=np.bool_)
     for i in range(n):
         nxt = azimuth[i + 1] if i + 1 < n else azimuth[0] + loop_length
         gap = nxt - azimuth[i] - separation
@@ -3763,24 +3791,30 @@ def ring_pairs(azimuth, separation, loop_length, gap_tolerance, sign):
         if gap > best:
             best = gap
             start = i + 1
-    idx = np.empty(n, dtype=np.int64)
     k = 0
     for m in range(n):
         j = (start + (m if sign > 0 else n - 1 - m)) % n
         if touching[j]:
             idx[k] = j
             k += 1
-    idx = idx[:k]
-    nxt = (idx + 1) % n
-    if sign > 0:
-        return idx, idx.copy(), nxt
-    return idx, nxt, idx.copy()
+    for c in range(k):
+        nxt = (idx[c] + 1) % n
+        rear[c] = idx[c] if sign > 0 else nxt
+        front[c] = nxt if sign > 0 else idx[c]
+    return k
 
 
 @_jit
 def pair_speed(x, rear, front, b_r, b_f):
     """|B_r x_rear + B_f x_front| per pair: the B2B slip speed (``b2b.linear_terms``)."""
     out = np.empty(rear.shape[0])
+    _pair_speed_into(x, rear, front, b_r, b_f, out)
+    return out
+
+
+@_jit
+def _pair_speed_into(x, rear, front, b_r, b_f, out):
+    """``pair_speed`` into out (K,)."""
     for c in range(rear.shape[0]):
         acc = 0.0
         for a in range(3):
@@ -3789,7 +3823,6 @@ def pair_speed(x, rear, front, b_r, b_f):
                 v += b_r[a, j] * x[rear[c], j] + b_f[a, j] * x[front[c], j]
             acc += v * v
         out[c] = math.sqrt(acc)
-    return out
 
 
 @_jit
@@ -3803,6 +3836,25 @@ def step_totals(loss, nut_torque, load, forces, speed, active, pair_idx, x, sign
     and force per ring pair, indices of the active candidate pairs).
     """
     n = x.shape[0]
+    ratio = np.empty(n)
+    ring_active = np.empty(n, dtype=np.bool_)
+    ring_forces = np.empty(n)
+    act = np.empty(pair_idx.shape[0], dtype=np.int64)
+    loss_sum, torque_sum, b2b, load_max, count = _step_totals_into(
+        loss, nut_torque, load, forces, speed, active, pair_idx, x, sign, ratio, ring_active,
+        ring_forces, act)
+    return loss_sum, torque_sum, b2b, load_max, ratio, ring_active, ring_forces, act[:count]
+
+
+@_jit
+def _step_totals_into(loss, nut_torque, load, forces, speed, active, pair_idx, x, sign, ratio,
+                      ring_active, ring_forces, act):
+    """
+    ``step_totals`` into the caller's arrays: ratio, ring_active, ring_forces (N,), act (K,).
+
+    Returns (its four sums, the number of active pairs: act's length in use).
+    """
+    n = x.shape[0]
     loss_sum = 0.0
     torque_sum = 0.0
     load_max = -np.inf
@@ -3814,24 +3866,20 @@ def step_totals(loss, nut_torque, load, forces, speed, active, pair_idx, x, sign
     b2b = 0.0
     for c in range(forces.shape[0]):
         b2b += forces[c] * speed[c]
-    ratio = np.empty(n)
     for i in range(n):
         ratio[i] = x[i, 2] * sign
-    ring_active = np.zeros(n, dtype=np.bool_)
-    ring_forces = np.zeros(n)
-    count = 0
+    for i in range(n):
+        ring_active[i] = False
+        ring_forces[i] = 0.0
     for c in range(pair_idx.shape[0]):
         ring_active[pair_idx[c]] = active[c]
         ring_forces[pair_idx[c]] = forces[c]
-        if active[c]:
-            count += 1
-    act = np.empty(count, dtype=np.int64)
     count = 0
     for c in range(pair_idx.shape[0]):
         if active[c]:
             act[count] = c
             count += 1
-    return loss_sum, torque_sum, b2b, load_max, ratio, ring_active, ring_forces, act
+    return loss_sum, torque_sum, b2b, load_max, count
 
 
 @_jit
@@ -3845,6 +3893,14 @@ def theta_centres(phi, amplitude, cycles, phase, offset, eccentricity, beta0):
     n = phi.shape[0]
     theta = np.empty(n)
     out = np.empty((n, 4, 2))
+    _theta_centres_into(phi, amplitude, cycles, phase, offset, eccentricity, beta0, theta, out)
+    return theta, out
+
+
+@_jit
+def _theta_centres_into(phi, amplitude, cycles, phase, offset, eccentricity, beta0, theta, out):
+    """``theta_centres`` into theta (N,) and out (N, 4, 2)."""
+    n = phi.shape[0]
     cb = eccentricity * math.cos(beta0)
     sb = eccentricity * math.sin(beta0)
     for i in range(n):
@@ -3858,7 +3914,6 @@ def theta_centres(phi, amplitude, cycles, phase, offset, eccentricity, beta0):
         out[i, 2, 1] = -sb
         out[i, 3, 0] = -cb
         out[i, 3, 1] = sb
-    return theta, out
 
 
 @_jit(exact=True)
@@ -3875,16 +3930,41 @@ def advance(azimuth, ratio, d_psi, separation, loop_length, track_start, gap_tol
     the numpy between them cost about 15 us of a 230 us step at N = 37.
     """
     n = azimuth.shape[0]
-    moved = np.empty(n)
+    az = np.empty(n)
+    phi = np.empty(n)
+    theta = np.empty(n)
+    centres = np.empty((n, 4, 2))
+    idx = np.empty(n, dtype=np.int64)
+    rear = np.empty(n, dtype=np.int64)
+    front = np.empty(n, dtype=np.int64)
+    k = _advance_into(azimuth, ratio, d_psi, separation, loop_length, track_start,
+                      gap_tolerance, sign, amplitude, cycles, phase, offset, eccentricity,
+                      beta0, np.empty((4, n)), az, phi, theta, centres,
+                      np.empty(n, dtype=np.bool_), np.empty(n, dtype=np.int64), idx, rear,
+                      front)
+    return az, phi, theta, centres, idx[:k], rear[:k], front[:k]
+
+
+@_jit(exact=True)
+def _advance_into(azimuth, ratio, d_psi, separation, loop_length, track_start, gap_tolerance,
+                  sign, amplitude, cycles, phase, offset, eccentricity, beta0, work, az, phi,
+                  theta, centres, touching, counts, idx, rear, front):
+    """
+    ``advance`` into the caller's arrays (N,) and centres (N, 4, 2); returns the pair count.
+
+    work (4, N), touching and counts (N,): work.
+    """
+    n = azimuth.shape[0]
+    moved = work[0]
     for i in range(n):
         moved[i] = azimuth[i] + ratio[i] * d_psi
-    az = ring_projection(moved, separation, loop_length)
-    phi = np.empty(n)
+    _ring_projection_into(moved, separation, loop_length, az, work[1:], counts)
     for i in range(n):
         phi[i] = track_start + np.mod(az[i] - track_start, loop_length)
-    theta, centres = theta_centres(phi, amplitude, cycles, phase, offset, eccentricity, beta0)
-    idx, rear, front = ring_pairs(az, separation, loop_length, gap_tolerance, sign)
-    return az, phi, theta, centres, idx, rear, front
+    _theta_centres_into(phi, amplitude, cycles, phase, offset, eccentricity, beta0, theta,
+                        centres)
+    return _ring_pairs_into(az, separation, loop_length, gap_tolerance, sign, touching, idx,
+                            rear, front)
 
 # --- Elastic load distribution (shaft and nut deform axially between balls; ref. [19]) ---
 #
@@ -4161,9 +4241,15 @@ def newton_work_size(n):
 
 
 def work_arrays(n):
-    """Work arrays (float, int) that ``newton`` and its callers reuse for n balls."""
+    """
+    Work arrays (float, int) that ``newton`` and its callers reuse for n balls.
+
+    newton's share, then the warm step's (``step_work_size``).  Given these, ``newton``
+    returns views of them (``_newton_result``): for compiled callers only.
+    """
     nf, ni = newton_work_size(n)
-    return np.empty(nf), np.empty(ni, dtype=np.int64)
+    sf, si = step_work_size(n)
+    return np.empty(nf + sf), np.empty(ni + si, dtype=np.int64)
 
 
 @_jit
@@ -4323,8 +4409,7 @@ def _newton(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef
             cur[1][:jn], cur[2][:jn], cur[3], cur[4], cur[5], cur[6], cur[7], cur[8], cur[9],
             cur[10], cur[11], cur[12], True, cur[15], ew, bw)
     if not (elastic or ok_chain):
-        return (x.copy(), u.copy(), fhat.copy(), False, 0, norm, cur[3].copy(),
-                cur[4].copy(), cur[7].copy())
+        return _newton_result(x, u, fhat, False, 0, norm, cur[3], cur[4], cur[7], ws)
     it = 0
     while norm > tol and it < max_it:
         it += 1
@@ -4351,8 +4436,7 @@ def _newton(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef
                 big_r = max(big_r, abs(dx[i, j]))
         big = max(big_r / max_rate, big_d / disp_limit)
         if not math.isfinite(big):
-            return (x.copy(), u.copy(), fhat.copy(), False, it, norm, cur[3].copy(),
-                    cur[4].copy(), cur[7].copy())
+            return _newton_result(x, u, fhat, False, it, norm, cur[3], cur[4], cur[7], ws)
         step = 1.0 / big if big > 1.0 else 1.0
         nn = norm
         ax_n = axial
@@ -4410,8 +4494,64 @@ def _newton(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef
         axial = ax_n
         norm = nn
         cur, trial = trial, cur
-    return (x.copy(), u.copy(), fhat.copy(), norm <= tol, it, norm, cur[3].copy(),
-            cur[4].copy(), cur[7].copy())
+    return _newton_result(x, u, fhat, norm <= tol, it, norm, cur[3], cur[4], cur[7], ws)
+
+
+@_jit
+def _newton_result(x, u, fhat, ok, it, norm, terms, per_contact, speed, ws):
+    """
+    ``_newton``'s result: its arrays themselves (views of ws) if ws is a caller's, else copies.
+
+    A ws longer than newton's own share is a caller's ``work_arrays``, alive for its
+    caller's whole call; those callers read the views before they use ws again (measured:
+    the nine copies were 9 of the 47 allocations of a warm step).  Else ws may be the one
+    ``newton`` allocated for this call alone: the arrays are copied out of it.
+    """
+    if ws.shape[0] > newton_work_size(x.shape[0])[0]:
+        return x, u, fhat, ok, it, norm, terms, per_contact, speed
+    return (x.copy(), u.copy(), fhat.copy(), ok, it, norm, terms.copy(), per_contact.copy(),
+            speed.copy())
+
+
+# The warm step's own work arrays (``step_work_size``), after newton's share of ws and wi,
+# in blocks of N values: floats of advance (its work: 4, azimuth, phi, theta: 3, centres: 8),
+# warm_solve (the guesses' x, u, forces: 2 x 8), _solve_guess (its forces: 1),
+# solve_active_set (f0, forces: 2, terms: 10, per contact: 12, x: 6, u: 1),
+# _warm_step_core (speed, forces, ratio, ring forces: 4); integers of advance (pair index,
+# rear, front, touching, counts: 5), _solve_guess (active: 1), solve_active_set (active,
+# index, rear, front: 4) and _warm_step_core (ring active, active pairs: 2).  A bool array
+# takes one integer per entry.
+_SW_ADVANCE = 0
+_SW_GUESS = 15
+_SW_SOLVE_GUESS = 31
+_SW_SET = 32
+_SW_CORE = 63
+_SW_BLOCKS = 67
+_SI_ADVANCE = 0
+_SI_SOLVE_GUESS = 5
+_SI_SET = 6
+_SI_CORE = 10
+_SI_BLOCKS = 12
+
+
+@_jit
+def step_work_size(n):
+    """Floats and integers of the warm step's work arrays for n balls, after newton's."""
+    return _SW_BLOCKS * n, _SI_BLOCKS * n
+
+
+@_jit
+def _step_offsets(n, fblock, iblock):
+    """Offsets in ws and wi of the warm step's work blocks fblock and iblock (_SW_*, _SI_*)."""
+    nf, ni = newton_work_size(n)
+    return nf + fblock * n, ni + iblock * n
+
+
+@_jit
+def _carve_bools(wi, off, k):
+    """Return a bool view of k entries of wi at off (one integer each) and the offset after."""
+    v, nxt = _carve(wi, off, (k,))
+    return v.view(np.bool_)[:k], nxt
 
 
 @_jit(exact=True)
@@ -4427,7 +4567,8 @@ def solve_active_set(x, u, f_all, active, centres, sign, cst, k_load, k_axis, on
     else close the open pairs whose rear ball orbits faster, until neither happens.
     f_all: B2B forces per candidate pair in units of ``scale``; budget < 0: no iteration cap.
     Returns (x, u, f_all, active, converged, budget_exhausted, iterations, norm, terms,
-    per_contact); u as in ``newton``.
+    per_contact); u as in ``newton``.  Its arrays are views of ws and wi (``work_arrays``,
+    which it needs), valid until the caller uses them again: for compiled callers only.
     """
     pair_rear = borrowed(pair_rear)
     pair_front = borrowed(pair_front)
@@ -4450,28 +4591,71 @@ def solve_active_set(x, u, f_all, active, centres, sign, cst, k_load, k_axis, on
     comp_b = borrowed(comp_b)
     ws = borrowed(ws)
     wi = borrowed(wi)
+    n = x.shape[0]
     p = pair_rear.shape[0]
-    active = active.copy()
+    # Every array of the loop is a view of the step's share of ws / wi (step_work_size).
+    off, io = _step_offsets(n, _SW_SET, _SI_SET)
+    f0_w, off = _carve(ws, off, (n,))
+    f_w, off = _carve(ws, off, (n,))
+    terms, off = _carve(ws, off, (n, 10))
+    per_contact, off = _carve(ws, off, (n, 4, 3))
+    x_w, off = _carve(ws, off, (n, 6))
+    u_w, off = _carve(ws, off, (u.shape[0],))
+    active_w, io = _carve_bools(wi, io, p)
+    idx_w, io = _carve(wi, io, (n,))
+    rear_w, io = _carve(wi, io, (n,))
+    front_w, io = _carve(wi, io, (n,))
+    for i in range(p):
+        active_w[i] = active[i]
+    active = active_w
     total_it = 0
     ok = False
     exhausted = False
     norm = np.inf
-    terms = np.zeros((x.shape[0], 10))
-    per_contact = np.zeros((x.shape[0], 4, 3))
+    if max_changes < 1:
+        # Returned as they are: the loop below does not run.
+        terms[:] = 0.0
+        per_contact[:] = 0.0
     settled = False
+    solved = False
     for _ in range(max_changes):
-        idx = np.flatnonzero(active)
-        rear = pair_rear[idx]
-        front = pair_front[idx]
-        f0 = np.maximum(f_all[idx], 0.0)
+        if solved:
+            # newton's x and u are views of its work arrays, laid out by the active set:
+            # copied out before the next call lays them out again.
+            for i in range(n):
+                for j in range(6):
+                    x_w[i, j] = x[i, j]
+            for i in range(u.shape[0]):
+                u_w[i] = u[i]
+            x = x_w
+            u = u_w
+        k = 0
+        for i in range(p):
+            if active[i]:
+                idx_w[k] = i
+                k += 1
+        idx = idx_w[:k]
+        rear = rear_w[:k]
+        front = front_w[:k]
+        f0 = f0_w[:k]
+        for j in range(k):
+            rear[j] = pair_rear[idx[j]]
+            front[j] = pair_front[idx[j]]
+            # np.maximum(f, 0.0) as numba computes it: f itself if NaN.
+            f = f_all[idx[j]]
+            f0[j] = 0.0 if f < 0.0 else f
         left = max(budget - total_it, 0) if budget >= 0 else max_it
         x, u, f_hat, ok, it, norm, terms, per_contact, _ = newton(
             x, u, f0, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid, scale,
             axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b, tol,
             min(max_it, left), max_rate, disp_limit, ws, wi)
+        solved = True
         total_it += it
-        f_all = np.zeros(p)
-        f_all[idx] = f_hat
+        for i in range(p):
+            f_w[i] = 0.0
+        for j in range(k):
+            f_w[idx[j]] = f_hat[j]
+        f_all = f_w[:p]
         if not ok:
             exhausted = budget >= 0 and it >= left and math.isfinite(norm)
             settled = True
@@ -4531,15 +4715,20 @@ def _solve_guess(x, u, forces, ring_active, pair_idx, centres, sign, cst, k_load
     comp_b = borrowed(comp_b)
     ws = borrowed(ws)
     wi = borrowed(wi)
-    fg = forces[pair_idx]
-    active = np.empty(pair_idx.shape[0], dtype=np.bool_)
-    for i in range(pair_idx.shape[0]):
+    p = pair_idx.shape[0]
+    off, io = _step_offsets(x.shape[0], _SW_SOLVE_GUESS, _SI_SOLVE_GUESS)
+    fs, _ = _carve(ws, off, (p,))
+    active, _ = _carve_bools(wi, io, p)
+    for i in range(p):
+        fg = forces[pair_idx[i]]
         faster = x[rear[i], 2] * sign > x[front[i], 2] * sign
-        active[i] = (ring_active[pair_idx[i]] and fg[i] > 0.0) or faster
-    return solve_active_set(x.copy(), u.copy(), fg / scale, active, centres, sign, cst, k_load,
-                            k_axis, on_nut, coef_s, coef_n, grid, scale, axial_load_n, rear,
-                            front, b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b, tol,
-                            max_it, max_rate, disp_limit, max_changes, budget, ws, wi)
+        active[i] = (ring_active[pair_idx[i]] and fg > 0.0) or faster
+        fs[i] = fg / scale
+    # x and u as they are: solve_active_set and newton only read them.
+    return solve_active_set(x, u, fs, active, centres, sign, cst, k_load, k_axis, on_nut,
+                            coef_s, coef_n, grid, scale, axial_load_n, rear, front, b_r, b_f,
+                            c_r, c_f, k_r, k_f, order, comp_a, comp_b, tol, max_it, max_rate,
+                            disp_limit, max_changes, budget, ws, wi)
 
 
 @_jit(exact=True)
@@ -4556,7 +4745,37 @@ def warm_solve(x, u, x_prev, u_prev, f_prev, d_psi_prev, forces, ring_active, d_
     closed pairs whose predicted force stays positive plus the open pairs whose rear ball is
     predicted faster.  Returns ``solve_active_set``'s tuple for the first guess that
     converged or used up the budget (else the last), the summed iterations, and the B2B slip
-    speed of every candidate pair.
+    speed of every candidate pair, all arrays of their own.  ws, wi: ``work_arrays``.
+    """
+    _check_work(x.shape[0], ws, wi)
+    out, iterations, speed = _warm_solve(
+        x, u, x_prev, u_prev, f_prev, d_psi_prev, forces, ring_active, d_psi, pair_idx,
+        centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid, scale,
+        axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b, tol,
+        max_it, max_rate, disp_limit, max_changes, budget, ws, wi)
+    xs, us, f_all, active, ok, exhausted, it, norm, terms, per_contact = out
+    return ((xs.copy(), us.copy(), f_all.copy(), active.copy(), ok, exhausted, it, norm,
+             terms.copy(), per_contact.copy()), iterations, speed.copy())
+
+
+@_jit
+def _check_work(n, ws, wi):
+    """Raise unless ws and wi hold newton's and the warm step's work arrays for n balls."""
+    nf, ni = newton_work_size(n)
+    sf, si = step_work_size(n)
+    if ws.shape[0] < nf + sf or wi.shape[0] < ni + si:
+        raise ValueError("warm step: work arrays too small (kernel.work_arrays)")
+
+
+@_jit(exact=True)
+def _warm_solve(x, u, x_prev, u_prev, f_prev, d_psi_prev, forces, ring_active, d_psi, pair_idx,
+                centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid, scale,
+                axial_load_n, rear, front, b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b,
+                tol, max_it, max_rate, disp_limit, max_changes, budget, ws, wi):
+    """
+    ``warm_solve`` in the caller's work arrays (ws, wi, at least ``_check_work``'s).
+
+    Its arrays are views of ws and wi: valid until the caller uses them again.
     """
     x = borrowed(x)
     u = borrowed(u)
@@ -4588,9 +4807,10 @@ def warm_solve(x, u, x_prev, u_prev, f_prev, d_psi_prev, forces, ring_active, d_
     ws = borrowed(ws)
     wi = borrowed(wi)
     n_guess = 1
-    gx = np.empty((2,) + x.shape)
-    gu = np.empty((2,) + u.shape)
-    gf = np.empty((2,) + forces.shape)
+    off, _ = _step_offsets(x.shape[0], _SW_GUESS, 0)
+    gx, off = _carve(ws, off, (2,) + x.shape)
+    gu, off = _carve(ws, off, (2,) + u.shape)
+    gf, off = _carve(ws, off, (2,) + forces.shape)
     if d_psi_prev != 0.0:
         r = d_psi / d_psi_prev
         if 0.0 < r <= 4.0:
@@ -4624,7 +4844,9 @@ def warm_solve(x, u, x_prev, u_prev, f_prev, d_psi_prev, forces, ring_active, d_
                            rear, front, b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b, tol,
                            max_it, max_rate, disp_limit, max_changes, budget, ws, wi)
         iterations += out[6]
-    speed = pair_speed(out[0], rear, front, b_r, b_f)
+    off, _ = _step_offsets(x.shape[0], _SW_CORE, 0)
+    speed, _ = _carve(ws, off, (rear.shape[0],))
+    _pair_speed_into(out[0], rear, front, b_r, b_f, speed)
     return out, iterations, speed
 
 
@@ -4697,24 +4919,52 @@ def _warm_step_core(azimuth, ratio, x, x_prev, f_prev, forces, ring_active, par,
     c_f = par[75:81]
     k_r = par[81:99].reshape((6, 3))
     k_f = par[99:117].reshape((6, 3))
-    az, phi, theta, centres, pair_idx, rear, front = advance(
-        azimuth, ratio, d_psi, geo[0], geo[1], track_start, geo[2], sign, geo[3], geo[4],
-        geo[5], geo[6], geo[7], geo[8])
+    n = azimuth.shape[0]
+    _check_work(n, ws, wi)
+    off, io = _step_offsets(n, _SW_ADVANCE, _SI_ADVANCE)
+    work, off = _carve(ws, off, (4, n))
+    az, off = _carve(ws, off, (n,))
+    phi, off = _carve(ws, off, (n,))
+    theta, off = _carve(ws, off, (n,))
+    centres, off = _carve(ws, off, (n, 4, 2))
+    idx_w, io = _carve(wi, io, (n,))
+    rear_w, io = _carve(wi, io, (n,))
+    front_w, io = _carve(wi, io, (n,))
+    touching, io = _carve_bools(wi, io, n)
+    counts, io = _carve(wi, io, (n,))
+    k = _advance_into(azimuth, ratio, d_psi, geo[0], geo[1], track_start, geo[2], sign, geo[3],
+                      geo[4], geo[5], geo[6], geo[7], geo[8], work, az, phi, theta, centres,
+                      touching, counts, idx_w, rear_w, front_w)
+    pair_idx = idx_w[:k]
+    rear = rear_w[:k]
+    front = front_w[:k]
     if epar.shape[0] > 0:
         order, comp_a, comp_b = elastic_path(phi, epar, axial_load_n, scale)
     else:
-        order = np.zeros(0, dtype=np.int64)
-        comp_a = np.zeros(0)
+        order, _ = _carve(wi, 0, (0,))
+        comp_a, _ = _carve(ws, 0, (0,))
         comp_b = comp_a
-    out, iterations, speed = warm_solve(
+    out, iterations, speed = _warm_solve(
         x, u, x_prev, u_prev, f_prev, d_psi_prev, forces, ring_active, d_psi, pair_idx,
         centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef_n, grid, scale, axial_load_n,
         rear, front, b_r, b_f, c_r, c_f, k_r, k_f, order, comp_a, comp_b, tol, max_it,
         max_rate, disp_limit, max_changes, budget, ws, wi)
     xs, us, f_all, active, ok, exhausted, _, norm, terms, per_contact = out
-    f = f_all * scale
-    totals = step_totals(terms[:, 6], terms[:, 7], per_contact[:, :, 0], f, speed, active,
-                         pair_idx, xs, sign)
+    # speed is the first of this function's blocks (_warm_solve's), the rest follow it.
+    off, io = _step_offsets(n, _SW_CORE + 1, _SI_CORE)
+    f_w, off = _carve(ws, off, (n,))
+    f = f_w[:k]
+    new_ratio, off = _carve(ws, off, (n,))
+    ring_forces, off = _carve(ws, off, (n,))
+    ring_active_new, io = _carve_bools(wi, io, n)
+    act, io = _carve(wi, io, (n,))
+    for c in range(k):
+        f[c] = f_all[c] * scale
+    loss_sum, torque_sum, b2b, load_max, count = _step_totals_into(
+        terms[:, 6], terms[:, 7], per_contact[:, :, 0], f, speed, active, pair_idx, xs, sign,
+        new_ratio, ring_active_new, ring_forces, act)
+    totals = (loss_sum, torque_sum, b2b, load_max, new_ratio, ring_active_new, ring_forces,
+              act[:count])
     return (ok, exhausted, iterations, norm, us, xs, f, totals, az, phi, theta, terms,
             per_contact, rear, front)
 
@@ -4774,8 +5024,9 @@ def warm_step(azimuth, ratio, x, x_prev, f_prev, forces, ring_active, par, coef_
             axial_load_n, tol, max_it, max_rate, disp_limit, max_changes, budget)
     blk, groups = _step_outputs(az, phi, theta, terms, per_contact, rear, front, f, totals,
                                 omega_n)
+    # xs and totals[5] are views of ws and wi (_warm_step_core): the caller keeps them.
     return (ok, exhausted, iterations, norm, us[0], totals[0], totals[1], totals[2], totals[3],
-            blk, xs, totals[5], groups)
+            blk, xs.copy(), totals[5].copy(), groups)
 
 
 # warm_steps' settings: direction sign, load sign, max iterations, max active-set changes,
@@ -4843,15 +5094,13 @@ def warm_steps(state, ring_active, angles, velocities, loads, par, epar, coef_s,
     angle = settings[6]
     for i in range(RESULT_SIZE):
         result[i] = 0.0
-    blk = np.empty((0, n))
-    groups = np.empty((2, 0), dtype=np.int64)
     steps = angles.shape[0]
     for j in range(steps):
         w = velocities[j]
         load = loads[j]
         if not (w * sign > 0.0 and (1.0 if load >= 0.0 else -1.0) == load_sign
                 and abs(load) > settings[9] and abs(load) <= settings[10]):
-            return blk, groups
+            return _no_outputs(n)
         last = j == steps - 1
         d_psi = angles[j] - angle
         scale = max(abs(load) / n, settings[8])
@@ -4865,7 +5114,7 @@ def warm_steps(state, ring_active, angles, velocities, loads, par, epar, coef_s,
                 max_rate, disp_limit, max_changes, budget)
         result[3] = iterations
         if not (ok or exhausted):
-            return blk, groups
+            return _no_outputs(n)
         result[10] += iterations
         # The state the next step starts from (WholeScrew._fused_step's bookkeeping).
         for i in range(n):
@@ -4891,11 +5140,16 @@ def warm_steps(state, ring_active, angles, velocities, loads, par, epar, coef_s,
             result[6] = totals[1]
             result[7] = totals[2]
             result[8] = totals[3]
-            blk, groups = _step_outputs(az, phi, theta, terms, per_contact, rear, front, f,
-                                        totals, w)
-        elif not ok:
+            return _step_outputs(az, phi, theta, terms, per_contact, rear, front, f, totals, w)
+        if not ok:
             result[9] += 1
-    return blk, groups
+    return _no_outputs(n)
+
+
+@_jit
+def _no_outputs(n):
+    """``warm_steps``' answer when the path's last point was not reached: empty arrays."""
+    return np.empty((0, n)), np.empty((2, 0), dtype=np.int64)
 
 
 def state_size(n, elastic):
