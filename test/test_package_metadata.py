@@ -30,6 +30,7 @@ ROSDEP_KEYS = {
     'pyarrow': 'python3-pyarrow-pip',
     'rosbags': 'python3-rosbags-pip',
     'numba': 'python3-numba',
+    'llvmlite': 'python3-llvmlite',
     'pytest': 'python3-pytest',
     'rclpy': 'rclpy',
     'rcl_interfaces': 'rcl_interfaces',
