@@ -151,6 +151,65 @@ def atan2_poly(y, x):
     return -r if y < 0.0 else r
 
 
+# sin and cos as polynomials the vectoriser can inline, for the balls' theta(phi) and arc
+# centres (``_theta_centres_into``): libm's are a call per value, 111 calls a step at N = 37
+# (measured with perf: 3.4 % of a warm step).  fdlibm's (Sun, 1993): the argument reduced
+# by pi/2 in three 33-bit parts (``__ieee754_rem_pio2``'s medium case, all three rounds
+# always taken, which only adds bits), then ``__kernel_sin`` / ``__kernel_cos`` on
+# [-pi/4, pi/4] with the reduction's tail.  For |x| < _TRIG_LIMIT, where n * pio2_1 is exact
+# (at most 53 bits); beyond it the caller takes libm.  Against libm over |x| <= 1e5 and near
+# multiples of pi/2: at most 1 ulp (test_kernel_lanes).  Compiled without fastmath only: a
+# reassociation would undo the reduction's compensated sums.
+_INV_PIO2 = 6.36619772367581382433e-01
+_PIO2_1 = 1.57079632673412561417e+00
+_PIO2_2 = 6.07710050630396597660e-11
+_PIO2_2T = 2.02226624879595063154e-21
+_PIO2_3 = 2.02226624871116645580e-21
+_PIO2_3T = 8.47842766036889956997e-32
+_ROUND_MAGIC = 6755399441055744.0          # 1.5 * 2^52: (v + it) - it rounds v to an integer
+_QX_MAGIC = 1.5 * 2.0 ** 28                # rounds x / 4 to a multiple of 2^-24 (fdlibm's qx)
+_TRIG_LIMIT = 2.0 ** 19 * _PIO2_1          # n < 2^19
+_SIN_P = (-1.66666666666666324348e-01, 8.33333333332248946124e-03,
+          -1.98412698298579493134e-04, 2.75573137070700676789e-06,
+          -2.50507602534068634195e-08, 1.58969099521155010221e-10)
+_COS_P = (4.16666666666666019037e-02, -1.38888888888741095749e-03,
+          2.48015872894767294178e-05, -2.75573143513906633035e-07,
+          2.08757232129817482790e-09, -1.13596475577881948265e-11)
+
+
+@_jit(exact=True, inline=True)
+def sincos_poly(x):
+    """(sin x, cos x) without a libm call, within 1 ulp of it for |x| < _TRIG_LIMIT."""
+    fn = (x * _INV_PIO2 + _ROUND_MAGIC) - _ROUND_MAGIC
+    r = x - fn * _PIO2_1
+    t = r
+    w = fn * _PIO2_2
+    r = t - w
+    w = fn * _PIO2_2T - ((t - r) - w)
+    t = r
+    w = fn * _PIO2_3
+    r = t - w
+    w = fn * _PIO2_3T - ((t - r) - w)
+    y0 = r - w
+    y1 = (r - y0) - w
+    z = y0 * y0
+    v = z * y0
+    rs = _SIN_P[1] + z * (_SIN_P[2] + z * (_SIN_P[3] + z * (_SIN_P[4] + z * _SIN_P[5])))
+    sn = y0 - ((z * (0.5 * y1 - v * rs) - y1) - v * _SIN_P[0])
+    rc = z * (_COS_P[0] + z * (_COS_P[1] + z * (_COS_P[2] + z * (_COS_P[3] + z * (
+        _COS_P[4] + z * _COS_P[5])))))
+    # fdlibm's qx (x / 4 on a 2^-24 grid, so that 1 - qx is exact; 0 below 0.3), and the
+    # quadrant as a swap and two signs: flat selects, which the vectoriser converts.
+    ay = abs(y0)
+    qx = (0.25 * ay + _QX_MAGIC) - _QX_MAGIC if ay >= 0.3 else 0.0
+    cs = (1.0 - qx) - ((0.5 * z - qx) - (z * rc - y0 * y1))
+    q = int(fn)
+    odd = (q & 1) != 0
+    s_out = (1.0 - (q & 2)) * (cs if odd else sn)
+    c_out = (1.0 - ((q + 1) & 2)) * (sn if odd else cs)
+    return s_out, c_out
+
+
 # glibc's hypot (2.35 on; dbl-64 without FMA, the x86-64 build): a scaled sqrt plus one
 # correction step.  Written out so that it vectorises; compiled without fastmath it rounds
 # exactly as libm, which numpy's np.hypot calls, so the contact loads stay bit for bit the
@@ -3893,23 +3952,51 @@ def theta_centres(phi, amplitude, cycles, phase, offset, eccentricity, beta0):
     n = phi.shape[0]
     theta = np.empty(n)
     out = np.empty((n, 4, 2))
-    _theta_centres_into(phi, amplitude, cycles, phase, offset, eccentricity, beta0, theta, out)
+    _theta_centres_into(phi, amplitude, cycles, phase, offset, eccentricity, beta0, theta, out,
+                        np.empty(4 * n))
     return theta, out
 
 
-@_jit
-def _theta_centres_into(phi, amplitude, cycles, phase, offset, eccentricity, beta0, theta, out):
-    """``theta_centres`` into theta (N,) and out (N, 4, 2)."""
+@_jit(exact=True)
+def _theta_centres_into(phi, amplitude, cycles, phase, offset, eccentricity, beta0, theta, out,
+                        tmp):
+    """
+    ``theta_centres`` into theta (N,) and out (N, 4, 2); tmp (4 N,): work.
+
+    sin and cos by ``sincos_poly``, in loops that vectorise (theta, then the sines and
+    cosines of beta0 -/+ theta into tmp, then the centres: one loop of it all, or stores
+    into out's (N, 4, 2) layout, stayed scalar: measured); libm beyond its range.
+    """
     n = phi.shape[0]
     cb = eccentricity * math.cos(beta0)
     sb = eccentricity * math.sin(beta0)
+    big = abs(beta0) + abs(offset) + abs(amplitude) >= _TRIG_LIMIT
     for i in range(n):
-        th = offset + amplitude * math.sin(cycles * phi[i] + phase)
-        theta[i] = th
-        out[i, 0, 0] = eccentricity * math.cos(beta0 - th)
-        out[i, 0, 1] = eccentricity * math.sin(beta0 - th)
-        out[i, 1, 0] = eccentricity * math.cos(beta0 + th)
-        out[i, 1, 1] = -eccentricity * math.sin(beta0 + th)
+        big = big or not abs(cycles * phi[i] + phase) < _TRIG_LIMIT
+    if big:
+        for i in range(n):
+            th = offset + amplitude * math.sin(cycles * phi[i] + phase)
+            theta[i] = th
+            tmp[i] = math.sin(beta0 - th)
+            tmp[n + i] = math.cos(beta0 - th)
+            tmp[2 * n + i] = math.sin(beta0 + th)
+            tmp[3 * n + i] = math.cos(beta0 + th)
+    else:
+        for i in range(n):
+            theta[i] = offset + amplitude * sincos_poly(cycles * phi[i] + phase)[0]
+        for i in range(n):
+            th = theta[i]
+            sm, cm = sincos_poly(beta0 - th)
+            sp, cp = sincos_poly(beta0 + th)
+            tmp[i] = sm
+            tmp[n + i] = cm
+            tmp[2 * n + i] = sp
+            tmp[3 * n + i] = cp
+    for i in range(n):
+        out[i, 0, 0] = eccentricity * tmp[n + i]
+        out[i, 0, 1] = eccentricity * tmp[i]
+        out[i, 1, 0] = eccentricity * tmp[3 * n + i]
+        out[i, 1, 1] = -eccentricity * tmp[2 * n + i]
         out[i, 2, 0] = -cb
         out[i, 2, 1] = -sb
         out[i, 3, 0] = -cb
@@ -3961,8 +4048,9 @@ def _advance_into(azimuth, ratio, d_psi, separation, loop_length, track_start, g
     _ring_projection_into(moved, separation, loop_length, az, work[1:], counts)
     for i in range(n):
         phi[i] = track_start + np.mod(az[i] - track_start, loop_length)
+    # work is free again: the projection is done with it.
     _theta_centres_into(phi, amplitude, cycles, phase, offset, eccentricity, beta0, theta,
-                        centres)
+                        centres, work.reshape(4 * n))
     return _ring_pairs_into(az, separation, loop_length, gap_tolerance, sign, touching, idx,
                             rear, front)
 

@@ -45,6 +45,12 @@ def _patches(cf, cells, sx, sy, dt, dh, slopes, out, stride):
 
 
 @compiled.jit(exact=True)
+def _sincos_all(x, s, c):
+    for i in range(x.shape[0]):
+        s[i], c[i] = kernel.sincos_poly(x[i])
+
+
+@compiled.jit(exact=True)
 def _hypot_all(x, y, out):
     for i in range(x.shape[0]):
         out[i] = kernel.hypot_exact(x[i], y[i])
@@ -70,6 +76,40 @@ def test_polynomial_atan2_is_within_two_ulp_of_libm():
     ulp = np.spacing(np.abs(ref))
     assert np.all(np.abs(got - ref) <= 2.0 * ulp)
     assert np.abs(got - ref).max() <= 4.5e-16          # the bound the kernel states, in rad
+
+
+def test_polynomial_sin_and_cos_are_within_one_ulp_of_libm():
+    k = np.arange(-200_000, 200_000)
+    x = np.concatenate([RNG.uniform(-1e5, 1e5, 400_000), RNG.uniform(-4.0, 4.0, 400_000),
+                        k * (np.pi / 2), k * (np.pi / 2) + RNG.uniform(-1e-6, 1e-6, k.size),
+                        10.0 ** RNG.uniform(-12.0, 0.0, 100_000),
+                        [0.0, -0.0, 0.3, 0.78125, np.pi / 4, 0.8 * kernel._TRIG_LIMIT]])
+    s = np.empty_like(x)
+    c = np.empty_like(x)
+    _sincos_all(x, s, c)
+    for got, ref in ((s, np.sin(x)), (c, np.cos(x))):
+        assert np.all(np.abs(got - ref) <= np.spacing(np.abs(ref)))
+    # The quadrants: signs and the swap of sine and cosine, on exact values.
+    _sincos_all(np.array([np.pi / 2, np.pi, -np.pi / 2, 1.5 * np.pi]), s[:4], c[:4])
+    assert s[:4] == pytest.approx([1.0, 0.0, -1.0, -1.0], abs=1e-15)
+    assert c[:4] == pytest.approx([0.0, -1.0, 0.0, 0.0], abs=1e-15)
+
+
+def test_theta_centres_take_libm_beyond_the_polynomial_range():
+    # Near the range the polynomial's theta is within 1 ulp of the libm expression; beyond
+    # it (a long run: the track azimuth grows with the nut angle) it is libm's exactly.
+    amp, cycles, phase, offset, ecc, beta0 = 0.06, 2.0, 0.1, 0.01, 1.2e-4, 0.78
+    for phi0, exact in ((0.4 * kernel._TRIG_LIMIT, False), (0.6 * kernel._TRIG_LIMIT, True)):
+        phi = phi0 + np.linspace(0.0, 4.0 * np.pi, 37)
+        theta, centres = kernel.theta_centres(phi, amp, cycles, phase, offset, ecc, beta0)
+        ref = offset + amp * np.sin(cycles * phi + phase)
+        cm = ecc * np.cos(beta0 - ref)
+        if exact:
+            assert np.array_equal(theta, ref)
+            assert np.array_equal(centres[:, 0, 0], cm)
+        else:
+            assert np.abs(theta - ref).max() <= 2.0 * np.spacing(amp)
+            assert np.abs(centres[:, 0, 0] - cm).max() <= 2.0 * np.spacing(ecc)
 
 
 def test_written_out_hypot_is_libm_bit_for_bit():
