@@ -4476,8 +4476,8 @@ def _newton(x, u, fhat, centres, sign, cst, k_load, k_axis, on_nut, coef_s, coef
     if elastic:
         behind, ahead, wrap = _elastic_blocks(order, pos, rear, front, n)
     else:
-        behind = np.full(0, -1, dtype=np.int64)
-        ahead = behind
+        behind = order      # empty: the rigid path has no axial order (no allocation)
+        ahead = order
         wrap = -1
     nc, ok_chain = chains_into(n, rear, front, rear_of, front_of, seq, starts)
     starts = starts[:nc + 1]
@@ -5065,9 +5065,19 @@ def _warm_step_core(azimuth, ratio, x, x_prev, f_prev, forces, ring_active, par,
 @_jit(exact=True)
 def _step_outputs(az, phi, theta, terms, per_contact, rear, front, f, totals, omega_n):
     """Return the output block (STEP_ROWS, N) and the active pairs (2, K) of a step."""
+    blk = np.empty((STEP_ROWS, az.shape[0]))
+    groups = np.empty((2, totals[7].shape[0]), dtype=np.int64)
+    _step_outputs_into(az, phi, theta, terms, per_contact, rear, front, f, totals, omega_n, blk,
+                       groups)
+    return blk, groups
+
+
+@_jit(exact=True)
+def _step_outputs_into(az, phi, theta, terms, per_contact, rear, front, f, totals, omega_n, blk,
+                       groups):
+    """``_step_outputs`` into blk (STEP_ROWS, N) and groups (2, >= K); returns K."""
     new_ratio, new_forces, act = totals[4], totals[6], totals[7]
     n = az.shape[0]
-    blk = np.empty((STEP_ROWS, n))
     for i in range(n):
         blk[0, i] = az[i]
         blk[1, i] = phi[i]
@@ -5078,12 +5088,11 @@ def _step_outputs(az, phi, theta, terms, per_contact, rear, front, f, totals, om
         blk[6, i] = new_forces[i]
         for k in range(4):
             blk[8 + k, i] = per_contact[i, k, 0]
-    groups = np.empty((2, act.shape[0]), dtype=np.int64)
     for j in range(act.shape[0]):
         groups[0, j] = rear[act[j]]
         groups[1, j] = front[act[j]]
         blk[7, j] = f[act[j]]
-    return blk, groups
+    return act.shape[0]
 
 
 @_jit(exact=True)
@@ -5130,14 +5139,22 @@ def warm_step(azimuth, ratio, x, x_prev, f_prev, forces, ring_active, par, coef_
 SETTINGS_SIZE = 15
 # warm_steps' results: steps done, last step converged, budget exhausted, its iterations,
 # its residual norm, its sums (loss, nut torque, B2B force x speed), largest contact load,
-# sub-steps not converged, iterations of the steps done.  After a failed step, "its
-# iterations" are those of the failed solve.
-RESULT_SIZE = 11
+# sub-steps not converged, iterations of the steps done, the last step's active pairs.
+# After a failed step, "its iterations" are those of the failed solve.
+RESULT_SIZE = 12
+# warm_step's packed constants (``pack_step_constants``) and the elastic ones
+# (``pack_elastic_constants``).
+PAR_SIZE = 117
+EPAR_SIZE = 6
+
+
+def aux_size(elastic):
+    """Length of ``warm_steps``' aux array: settings, result, packed and elastic constants."""
+    return SETTINGS_SIZE + RESULT_SIZE + PAR_SIZE + (EPAR_SIZE if elastic else 0)
 
 
 @_jit(exact=True)
-def warm_steps(state, ring_active, angles, velocities, loads, par, epar, coef_s, coef_n, ws,
-               wi, settings, result):
+def warm_steps(state, ring_active, path, aux, coef_s, coef_n, ws, wi, blk, groups):
     """
     Take the warm steps to the given points in turn in one call: sub-steps, then the last.
 
@@ -5147,27 +5164,36 @@ def warm_steps(state, ring_active, angles, velocities, loads, par, epar, coef_s,
     (16 N + 2 + 2 m,): the model's state, read and written in place: azimuth, orbit ratio,
     x (6 N), the previous x (6 N), B2B force per ring pair and its previous value, the
     previous nut-angle increment, then u and the previous u (m = 1 rigid, N elastic), then
-    a spare; ring_active (N,) is written in place too.  angles [rad], velocities [rad/s],
-    loads [N]: the points; settings (SETTINGS_SIZE,).  Stops before the first point that is
-    not a warm step of the state's direction and load sign inside the load range, and at the
-    first step that fails from every guess, the state left as that step found it (the caller
-    takes it with a cold start).  Writes ``result`` (RESULT_SIZE,) and returns the output
-    block and active pairs (``warm_step``'s) of the path's last point, or empty arrays if it
-    was not reached.
+    a spare; ring_active (N,) is written in place too.  path (3 K,): the K points' angles
+    [rad], velocities [rad/s] and loads [N], one after the other.  aux (``aux_size``): the
+    settings (SETTINGS_SIZE), the result (RESULT_SIZE, written), the packed constants
+    (PAR_SIZE) and, elastic, the elastic ones (EPAR_SIZE).  Stops before the first point
+    that is not a warm step of the state's direction and load sign inside the load range,
+    and at the first step that fails from every guess, the state left as that step found it
+    (the caller takes it with a cold start).  When the path's last point is reached, writes
+    its output block (``warm_step``'s) into blk (STEP_ROWS, N) and its active pairs into
+    groups[:, :result[11]] ((2, N) int64).  Returns nothing: two arrays returned cost 0.6 us
+    a call more than arrays passed in (measured: boxing them), a tenth of the Python around
+    the call.
     """
     state = borrowed(state)
     ring_active = borrowed(ring_active)
-    angles = borrowed(angles)
-    velocities = borrowed(velocities)
-    loads = borrowed(loads)
-    par = borrowed(par)
-    epar = borrowed(epar)
+    path = borrowed(path)
+    aux = borrowed(aux)
     coef_s = borrowed(coef_s)
     coef_n = borrowed(coef_n)
     ws = borrowed(ws)
     wi = borrowed(wi)
-    settings = borrowed(settings)
-    result = borrowed(result)
+    blk = borrowed(blk)
+    groups = borrowed(groups)
+    steps = path.shape[0] // 3
+    angles = path[0:steps]
+    velocities = path[steps:2 * steps]
+    loads = path[2 * steps:3 * steps]
+    settings = aux[0:SETTINGS_SIZE]
+    result = aux[SETTINGS_SIZE:SETTINGS_SIZE + RESULT_SIZE]
+    par = aux[SETTINGS_SIZE + RESULT_SIZE:SETTINGS_SIZE + RESULT_SIZE + PAR_SIZE]
+    epar = aux[SETTINGS_SIZE + RESULT_SIZE + PAR_SIZE:]
     n = ring_active.shape[0]
     m = (state.shape[0] - 16 * n - 2) // 2
     azimuth = state[0:n]
@@ -5187,13 +5213,12 @@ def warm_steps(state, ring_active, angles, velocities, loads, par, epar, coef_s,
     angle = settings[6]
     for i in range(RESULT_SIZE):
         result[i] = 0.0
-    steps = angles.shape[0]
     for j in range(steps):
         w = velocities[j]
         load = loads[j]
         if not (w * sign > 0.0 and (1.0 if load >= 0.0 else -1.0) == load_sign
                 and abs(load) > settings[9] and abs(load) <= settings[10]):
-            return _no_outputs(n)
+            return
         last = j == steps - 1
         d_psi = angles[j] - angle
         scale = max(abs(load) / n, settings[8])
@@ -5207,7 +5232,7 @@ def warm_steps(state, ring_active, angles, velocities, loads, par, epar, coef_s,
                 max_rate, disp_limit, max_changes, budget)
         result[3] = iterations
         if not (ok or exhausted):
-            return _no_outputs(n)
+            return
         result[10] += iterations
         # The state the next step starts from (WholeScrew._fused_step's bookkeeping).
         for i in range(n):
@@ -5233,16 +5258,12 @@ def warm_steps(state, ring_active, angles, velocities, loads, par, epar, coef_s,
             result[6] = totals[1]
             result[7] = totals[2]
             result[8] = totals[3]
-            return _step_outputs(az, phi, theta, terms, per_contact, rear, front, f, totals, w)
+            result[11] = _step_outputs_into(az, phi, theta, terms, per_contact, rear, front, f,
+                                            totals, w, blk, groups)
+            return
         if not ok:
             result[9] += 1
-    return _no_outputs(n)
-
-
-@_jit
-def _no_outputs(n):
-    """``warm_steps``' answer when the path's last point was not reached: empty arrays."""
-    return np.empty((0, n)), np.empty((2, 0), dtype=np.int64)
+    return
 
 
 def state_size(n, elastic):
@@ -5265,11 +5286,11 @@ def pack_elastic_constants(lead_m, elastic):
 
 
 def pack_step_constants(geo, cst, k_load, k_axis, on_nut, grid, b_r, b_f, c_r, c_f, k_r, k_f):
-    """Pack ``warm_step``'s constant arrays into its one ``par`` (117 floats)."""
+    """Pack ``warm_step``'s constant arrays into its one ``par`` (PAR_SIZE floats)."""
     par = np.concatenate([np.ravel(a) for a in (geo, cst, k_load, k_axis, on_nut, grid, b_r, b_f,
                                                 c_r, c_f, k_r, k_f)]).astype(float)
-    if par.shape != (117,):
-        raise ValueError(f"warm_step constants: {par.shape[0]} values, 117 expected")
+    if par.shape != (PAR_SIZE,):
+        raise ValueError(f"warm_step constants: {par.shape[0]} values, {PAR_SIZE} expected")
     return par
 
 

@@ -173,19 +173,16 @@ class _PathSteps:
         """
         t0 = time.perf_counter()
         try:
-            # np.fromiter: a list (as the runner and the look-ahead pass) is read in a fifth
-            # less time than by np.asarray(...).ravel() right after the compiled call.
-            angles = np.fromiter(nut_angles_rad, float)
-            w = np.fromiter(nut_velocities_rad_s, float)
-            loads = np.fromiter(axial_loads_n, float)
-        except (TypeError, ValueError):     # a number, or nested sequences: flattened
-            angles = np.asarray(nut_angles_rad, dtype=float).ravel()
-            w = np.asarray(nut_velocities_rad_s, dtype=float).ravel()
-            loads = np.asarray(axial_loads_n, dtype=float).ravel()
-        k = len(angles)
-        if k == 0 or len(w) != k or len(loads) != k:
-            raise ValueError(f"step_path: {k} angles, {len(w)} velocities and "
-                             f"{len(loads)} loads (one of each per step, at least one)")
+            # The points as one array (angles, velocities, loads), read from the lists (as
+            # the runner and the look-ahead pass give them) by one np.fromiter: 0.3 us a call
+            # less than one per list, and one array argument less than three.
+            k = len(nut_angles_rad)
+            path = np.fromiter((*nut_angles_rad, *nut_velocities_rad_s, *axial_loads_n), float)
+        except (TypeError, ValueError):     # a number, an iterator, nested sequences
+            path = None
+        if path is None or k == 0 or len(path) != 3 * k or len(nut_velocities_rad_s) != k:
+            path = _path_points(nut_angles_rad, nut_velocities_rad_s, axial_loads_n)
+            k = len(path) // 3
         dt_s = float(dt_s)
         # The leading warm steps in one compiled call, in this frame (a method of its own
         # for them, and the answer timed there too, cost 0.2 us a step more at 20 rev/s).
@@ -210,15 +207,18 @@ class _PathSteps:
                 # around the call).
                 self._path_settings(buf, key)
             buf.settings[6] = self.nut_angle
-            blk, groups = kernel.warm_steps(buf.state, v[6], angles, w, loads, buf.par,
-                                            buf.epar, buf.coef_s, buf.coef_n, *self._work,
-                                            buf.settings, buf.result)
+            blk = buf.blk
+            if blk is None:
+                # The answer's arrays are views of blk: a new one for each answer given.
+                blk = buf.blk = np.empty((kernel.STEP_ROWS, self.n))
+            kernel.warm_steps(buf.state, v[6], path, buf.aux, buf.coef_s, buf.coef_n,
+                              *self._work, blk, buf.groups)
             r = buf.result.tolist()
             done = int(r[0])
             if done:
                 # ``step``'s bookkeeping of the steps done: the state is the buffer's (views
                 # into it; a copy of this model copies them, see __copy__).
-                self.nut_angle = angles.item(done - 1)
+                self.nut_angle = path.item(done - 1)
                 t = self.time
                 for _ in range(done):
                     t += dt_s       # as ``step`` sums it, step by step
@@ -232,16 +232,22 @@ class _PathSteps:
                 self._forces, self.azimuth, self.ratio, self._active = v[2], v[4], v[5], v[6]
             missed = int(r[9])
             if done == k:
-                rear, front = groups.tolist()
-                if len(rear) > 1:
-                    grp = _groups(rear, front, blk[7][:len(rear)].tolist())
-                else:       # none, or the one pair closed (most answers): no chains to find
-                    grp = [((rear[0], front[0]), (blk.item(7, 0),))] if rear else []
+                buf.blk = None
+                pairs = int(r[11])
+                if pairs > 1:
+                    g = buf.groups
+                    grp = _groups(g[0, :pairs].tolist(), g[1, :pairs].tolist(),
+                                  blk[7, :pairs].tolist())
+                elif pairs:     # the one pair closed (most answers): no chains to find
+                    grp = [((buf.groups.item(0, 0), buf.groups.item(1, 0)),
+                            (blk.item(7, 0),))]
+                else:
+                    grp = []
                 # blk[6]: the B2B forces the kernel also left in the state (v[2]), in an
                 # array of this answer's own (a copy of v[2] cost more).
-                res = self._result(w.item(k - 1), loads.item(k - 1), r[5], r[6], r[7], r[8],
-                                   bool(r[1]), int(r[3]), blk[1], blk[2], blk[4], blk[8:12].T,
-                                   blk[5], blk[6], grp, None)
+                res = self._result(path.item(2 * k - 1), path.item(3 * k - 1), r[5], r[6], r[7],
+                                   r[8], bool(r[1]), int(r[3]), blk[1], blk[2], blk[4],
+                                   blk[8:12].T, blk[5], blk[6], grp, None)
                 sub_it = int(r[10] - r[3])
             else:
                 sub_it = int(r[10])
@@ -251,7 +257,8 @@ class _PathSteps:
                 if res is not None:
                     missed += not res.converged
                     sub_it += res.iterations
-                res = self.step(angles[j], w[j], loads[j], dt_s, substep=j < k - 1)
+                res = self.step(path.item(j), path.item(k + j), path.item(2 * k + j), dt_s,
+                                substep=j < k - 1)
         res.substeps_not_converged = missed
         res.substep_iterations = sub_it
         res.solve_time_s = time.perf_counter() - t0
@@ -285,7 +292,7 @@ class _PathSteps:
     def _path_settings(self, buf, key):
         """Write ``kernel.warm_steps``' settings and constants of ``key`` (``step_path``)."""
         sign, load_sign, solver, st, cfg, disp_limit = key[:6]
-        consts, buf.par = self._step_constants(solver, sign)
+        consts, buf.par[:] = self._step_constants(solver, sign)
         buf.coef_s, buf.coef_n = consts[4], consts[5]
         settings = buf.settings
         settings[0] = sign
@@ -309,7 +316,11 @@ class _PathSteps:
         views = (state[2 * n:8 * n].reshape(n, 6), state[8 * n:14 * n].reshape(n, 6),
                  state[14 * n:15 * n], state[15 * n:16 * n], state[0:n], state[n:2 * n],
                  np.zeros(n, dtype=bool), state[o:o + m], state[o + m:o + 2 * m])
-        settings = np.zeros(kernel.SETTINGS_SIZE)
+        # settings, result, packed constants, elastic constants: one array (kernel.aux_size)
+        aux = np.zeros(kernel.aux_size(elastic))
+        o_res = kernel.SETTINGS_SIZE
+        o_par = o_res + kernel.RESULT_SIZE
+        settings = aux[:o_res]
         settings[7] = self.config.track.track_start_rad
         settings[8] = self.model.preload_load()
         settings[9] = -1.0 if self._preload else self.config.solver.min_axial_load_n
@@ -318,9 +329,13 @@ class _PathSteps:
         buf = self._path_buf = _PathBuffers()
         buf.state, buf.views, buf.settings, buf.elastic = state, views, settings, elastic
         buf.tail = state[16 * n:16 * n + (1 if elastic else 3)]
-        buf.result = np.zeros(kernel.RESULT_SIZE)
-        buf.epar = kernel.pack_elastic_constants(self.config.geometry.lead_m,
-                                                 self.config.elastic) if elastic else np.zeros(0)
+        buf.aux = aux
+        buf.result = aux[o_res:o_par]
+        buf.par = aux[o_par:o_par + kernel.PAR_SIZE]
+        if elastic:
+            aux[o_par + kernel.PAR_SIZE:] = kernel.pack_elastic_constants(
+                self.config.geometry.lead_m, self.config.elastic)
+        buf.groups = np.zeros((2, n), dtype=np.int64)
         return buf
 
 
@@ -333,12 +348,12 @@ class _PathBuffers:
     ``state``).
     """
 
-    __slots__ = ("state", "views", "settings", "result", "epar", "elastic", "key", "par",
-                 "coef_s", "coef_n", "last_state", "last_prev", "tail")
+    __slots__ = ("state", "views", "settings", "result", "aux", "elastic", "key", "par",
+                 "coef_s", "coef_n", "last_state", "last_prev", "tail", "blk", "groups")
 
     def __init__(self):
         """Nothing written yet: the first call writes the settings and the state."""
-        self.key = self.last_state = self.last_prev = None
+        self.key = self.last_state = self.last_prev = self.blk = None
 
 
 class _WarmStep:
@@ -745,6 +760,21 @@ class WholeScrew(_WarmStep, _PathSteps):
             # and its load |W| already passed the range check in ``step``.
             bool(not converged or load_max <= self.max_contact_load_n), iterations,
             0.0 if t0 is None else time.perf_counter() - t0)
+
+
+def _path_points(nut_angles_rad, nut_velocities_rad_s, axial_loads_n):
+    """``step_path``'s points as one array (angles, velocities, loads), each flattened."""
+    cols = []
+    for points in (nut_angles_rad, nut_velocities_rad_s, axial_loads_n):
+        try:
+            cols.append(np.fromiter(points, float))
+        except (TypeError, ValueError):     # a number, or nested sequences: flattened
+            cols.append(np.asarray(points, dtype=float).ravel())
+    k = len(cols[0])
+    if k == 0 or len(cols[1]) != k or len(cols[2]) != k:
+        raise ValueError(f"step_path: {k} angles, {len(cols[1])} velocities and "
+                         f"{len(cols[2])} loads (one of each per step, at least one)")
+    return np.concatenate(cols)
 
 
 def _groups(rear, front, forces):

@@ -103,7 +103,7 @@ def test_step_path_takes_its_warm_steps_in_one_compiled_call(model, config, monk
     real = kernel.warm_steps
 
     def counted(*args):
-        calls.append(len(args[2]))
+        calls.append(len(args[2]) // 3)        # path: angles, velocities, loads
         return real(*args)
     monkeypatch.setattr(kernel, "warm_steps", counted)
     monkeypatch.setattr(kernel, "warm_step", None)           # would raise if called
@@ -125,11 +125,13 @@ def test_step_path_hands_the_rest_of_a_path_to_step(model, config, monkeypatch):
     ref = _step_by_step(WholeScrew(config, model), paths)
     real = kernel.warm_steps
 
-    def first_only(state, active, angles, w, loads, *rest):
-        settings, result = rest[-2], rest[-1]
+    def first_only(state, active, path, aux, *rest):
+        k = len(path) // 3
+        settings = aux[:kernel.SETTINGS_SIZE]
+        result = aux[kernel.SETTINGS_SIZE:kernel.SETTINGS_SIZE + kernel.RESULT_SIZE]
         answered_tol = settings[11]
         settings[11] = settings[12]
-        out = real(state, active, angles[:1], w[:1], loads[:1], *rest)
+        out = real(state, active, path[::k].copy(), aux, *rest)
         settings[11] = answered_tol
         if result[0] == 1 and result[1] == 0.0:
             result[9] += 1

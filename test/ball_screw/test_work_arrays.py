@@ -43,9 +43,9 @@ def _allocations():
     return rtsys.get_allocation_stats().alloc
 
 
-@pytest.mark.parametrize("distribution, most", [("rigid", 8.0), ("elastic", 14.0)])
+@pytest.mark.parametrize("distribution, most", [("rigid", 4.0), ("elastic", 9.0)])
 def test_a_warm_step_allocates_a_few_arrays(distribution, most):
-    """NRT allocations per warm step of ``step_path`` (47 rigid and 50 elastic before)."""
+    """NRT allocations per warm step of ``step_path`` (once 47 rigid, 50 elastic; 2.5, 8.5)."""
     nrt = pytest.importorskip("numba.core.runtime._nrt_python")
     screw = _screw(distribution)
     for angles in _inputs(40):                 # cold start, the groups forming, compiled
