@@ -361,6 +361,26 @@ try:
             return None
         return _types.void(cf, cell, _types.float64, _types.float64, _types.float64,
                            _types.float64, out, base, stride), _patch_codegen(True)
+
+    @_intrinsic
+    def fused_multiply_add(typingctx, a, b, c):
+        """
+        Return a * b + c rounded once (float64).
+
+        LLVM's llvm.fma: the FMA instruction, or libm's fma on a CPU without one; never
+        left unfused (as fastmath's contraction may be), so exact where the sum is.
+        """
+        if not all(t == _types.float64 for t in (a, b, c)):
+            return None
+
+        def codegen(context, builder, sig, args):
+            from llvmlite import ir
+            dbl = ir.DoubleType()
+            fma = _cgutils.get_or_insert_function(
+                builder.module, ir.FunctionType(dbl, [dbl, dbl, dbl]), "llvm.fma.f64")
+            return builder.call(fma, args)
+
+        return _types.float64(a, b, c), codegen
 except ImportError:        # pragma: no cover - numba is an exec_depend
     HAVE_NUMBA = False
     DEPENDENCY_KEYED_CACHE = False
@@ -389,6 +409,13 @@ except ImportError:        # pragma: no cover - numba is an exec_depend
     def bicubic_patch(cf, cell, sx, sy, dt, dh, out, base, stride):
         """Without numba: values and derivatives (see the compiled one)."""
         patch_reference(cf, cell, sx, sy, dt, dh, out, base, stride, True)
+
+    def fused_multiply_add(a, b, c):
+        """Without numba: a * b + c rounded once (exact rationals, rounded by float())."""
+        from fractions import Fraction
+        if not all(math.isfinite(v) for v in (a, b, c)):
+            return a * b + c
+        return float(Fraction(a) * Fraction(b) + Fraction(c))
 
 
 def patch_reference(cf, cell, sx, sy, dt, dh, out, base, stride, slopes):

@@ -51,6 +51,14 @@ def _sincos_all(x, s, c):
 
 
 @compiled.jit(exact=True)
+def _fma_all(a, b, c):
+    out = np.empty_like(a)
+    for i in range(a.shape[0]):
+        out[i] = compiled.fused_multiply_add(a[i], b[i], c[i])
+    return out
+
+
+@compiled.jit(exact=True)
 def _hypot_all(x, y, out):
     for i in range(x.shape[0]):
         out[i] = kernel.hypot_exact(x[i], y[i])
@@ -110,6 +118,36 @@ def test_theta_centres_take_libm_beyond_the_polynomial_range():
         else:
             assert np.abs(theta - ref).max() <= 2.0 * np.spacing(amp)
             assert np.abs(centres[:, 0, 0] - cm).max() <= 2.0 * np.spacing(ecc)
+
+
+def test_track_azimuth_is_numpys_mod_bit_for_bit():
+    # The balls' azimuth in the loaded track by one fused multiply-add, against np.mod:
+    # far from the track (a long run), near it, on and next to multiples of the loop, NaN.
+    loop = 4.0 * np.pi
+    k = np.arange(-3000, 3000)
+    az = np.concatenate([RNG.uniform(-1e5, 1e5, 200_000), RNG.uniform(-3 * loop, 3 * loop,
+                                                                      200_000),
+                         k * loop, k * loop + 1e-13, k * loop - 1e-13,
+                         [0.0, -0.0, loop, -loop, np.nextafter(loop, 0.0), 1e-300, -1e-300,
+                          np.nan]])
+    for start in (0.0, 123.456, -5000.0, 1e4 * loop):
+        phi = np.empty_like(az)
+        kernel._track_azimuth_into(az, start, loop, phi)
+        ref = start + np.mod(az - start, loop)
+        assert np.array_equal(phi, ref, equal_nan=True)
+
+
+def test_fused_multiply_add_rounds_once():
+    # a * b + c with the product kept exact: against exact rationals, where a product
+    # rounded first would differ.
+    from fractions import Fraction
+    a = RNG.uniform(-10.0, 10.0, 2000)
+    b = RNG.uniform(-10.0, 10.0, 2000)
+    c = -a * b + RNG.uniform(-1e-12, 1e-12, 2000)
+    got = _fma_all(a, b, c)
+    ref = np.array([float(Fraction(x) * Fraction(y) + Fraction(z)) for x, y, z in zip(a, b, c)])
+    assert np.array_equal(got, ref)
+    assert not np.array_equal(a * b + c, ref)
 
 
 def test_written_out_hypot_is_libm_bit_for_bit():
