@@ -177,10 +177,12 @@ class _PathSteps:
             # the runner and the look-ahead pass give them) by one np.fromiter: 0.3 us a call
             # less than one per list, and one array argument less than three.
             k = len(nut_angles_rad)
-            path = np.fromiter((*nut_angles_rad, *nut_velocities_rad_s, *axial_loads_n), float)
+            same = k > 0 and len(nut_velocities_rad_s) == k and len(axial_loads_n) == k
+            path = np.fromiter((*nut_angles_rad, *nut_velocities_rad_s, *axial_loads_n),
+                               float) if same else None
         except (TypeError, ValueError):     # a number, an iterator, nested sequences
             path = None
-        if path is None or k == 0 or len(path) != 3 * k or len(nut_velocities_rad_s) != k:
+        if path is None or len(path) != 3 * k:
             path = _path_points(nut_angles_rad, nut_velocities_rad_s, axial_loads_n)
             k = len(path) // 3
         dt_s = float(dt_s)

@@ -248,9 +248,9 @@ def test_the_answer_builder_puts_each_value_in_its_field(model, config):
     assert (r.substeps_not_converged, r.substep_iterations) == (0, 0)
 
 
-@pytest.mark.parametrize("form", [list, tuple, np.array, lambda c: np.array(c)[:, None]])
+@pytest.mark.parametrize("form", [list, tuple, np.array, lambda c: np.array(c)[:, None], iter])
 def test_step_path_reads_its_points_in_any_form(model, config, form):
-    """Lists (the runner's), tuples, arrays and nested columns give the same answers."""
+    """Lists (the runner's), tuples, arrays, nested columns and iterators: the same answers."""
     paths = _paths(8)
     ref = _by_path(WholeScrew(config, model), paths)
     screw = WholeScrew(config, model)
