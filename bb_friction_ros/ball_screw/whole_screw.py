@@ -172,19 +172,8 @@ class _PathSteps:
 
         """
         t0 = time.perf_counter()
-        try:
-            # The points as one array (angles, velocities, loads), read from the lists (as
-            # the runner and the look-ahead pass give them) by one np.fromiter: 0.3 us a call
-            # less than one per list, and one array argument less than three.
-            k = len(nut_angles_rad)
-            same = k > 0 and len(nut_velocities_rad_s) == k and len(axial_loads_n) == k
-            path = np.fromiter((*nut_angles_rad, *nut_velocities_rad_s, *axial_loads_n),
-                               float) if same else None
-        except (TypeError, ValueError):     # a number, an iterator, nested sequences
-            path = None
-        if path is None or len(path) != 3 * k:
-            path = _path_points(nut_angles_rad, nut_velocities_rad_s, axial_loads_n)
-            k = len(path) // 3
+        path = _path_points(nut_angles_rad, nut_velocities_rad_s, axial_loads_n)
+        k = len(path) // 3
         dt_s = float(dt_s)
         # The leading warm steps in one compiled call, in this frame (a method of its own
         # for them, and the answer timed there too, cost 0.2 us a step more at 20 rev/s).
@@ -766,6 +755,17 @@ class WholeScrew(_WarmStep, _PathSteps):
 
 def _path_points(nut_angles_rad, nut_velocities_rad_s, axial_loads_n):
     """``step_path``'s points as one array (angles, velocities, loads), each flattened."""
+    try:
+        # Lists (as the runner and the look-ahead pass give them) read by one np.fromiter:
+        # 0.3 us a call less than one per list, and one array argument less than three.
+        k = len(nut_angles_rad)
+        if k > 0 and len(nut_velocities_rad_s) == k and len(axial_loads_n) == k:
+            path = np.fromiter((*nut_angles_rad, *nut_velocities_rad_s, *axial_loads_n),
+                               float)
+            if len(path) == 3 * k:
+                return path
+    except (TypeError, ValueError):     # a number, an iterator, nested sequences
+        pass
     cols = []
     for points in (nut_angles_rad, nut_velocities_rad_s, axial_loads_n):
         try:
