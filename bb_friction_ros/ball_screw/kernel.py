@@ -5167,11 +5167,22 @@ RESULT_SIZE = 12
 # (``pack_elastic_constants``).
 PAR_SIZE = 117
 EPAR_SIZE = 6
+# Where each part of warm_steps' aux array starts: settings, result, packed constants,
+# elastic constants (the only place the layout is written down).
+_AUX_RESULT = SETTINGS_SIZE
+_AUX_PAR = _AUX_RESULT + RESULT_SIZE
+_AUX_EPAR = _AUX_PAR + PAR_SIZE
 
 
 def aux_size(elastic):
     """Length of ``warm_steps``' aux array: settings, result, packed and elastic constants."""
-    return SETTINGS_SIZE + RESULT_SIZE + PAR_SIZE + (EPAR_SIZE if elastic else 0)
+    return _AUX_EPAR + (EPAR_SIZE if elastic else 0)
+
+
+def aux_parts(aux):
+    """Return the views (settings, result, packed constants, elastic constants) of ``aux``."""
+    return (aux[:_AUX_RESULT], aux[_AUX_RESULT:_AUX_PAR], aux[_AUX_PAR:_AUX_EPAR],
+            aux[_AUX_EPAR:])
 
 
 @_jit(exact=True)
@@ -5211,10 +5222,10 @@ def warm_steps(state, ring_active, path, aux, coef_s, coef_n, ws, wi, blk, group
     angles = path[0:steps]
     velocities = path[steps:2 * steps]
     loads = path[2 * steps:3 * steps]
-    settings = aux[0:SETTINGS_SIZE]
-    result = aux[SETTINGS_SIZE:SETTINGS_SIZE + RESULT_SIZE]
-    par = aux[SETTINGS_SIZE + RESULT_SIZE:SETTINGS_SIZE + RESULT_SIZE + PAR_SIZE]
-    epar = aux[SETTINGS_SIZE + RESULT_SIZE + PAR_SIZE:]
+    settings = aux[:_AUX_RESULT]       # aux_parts, as views here
+    result = aux[_AUX_RESULT:_AUX_PAR]
+    par = aux[_AUX_PAR:_AUX_EPAR]
+    epar = aux[_AUX_EPAR:]
     n = ring_active.shape[0]
     m = (state.shape[0] - 16 * n - 2) // 2
     azimuth = state[0:n]

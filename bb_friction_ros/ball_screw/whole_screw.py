@@ -307,11 +307,9 @@ class _PathSteps:
         views = (state[2 * n:8 * n].reshape(n, 6), state[8 * n:14 * n].reshape(n, 6),
                  state[14 * n:15 * n], state[15 * n:16 * n], state[0:n], state[n:2 * n],
                  np.zeros(n, dtype=bool), state[o:o + m], state[o + m:o + 2 * m])
-        # settings, result, packed constants, elastic constants: one array (kernel.aux_size)
+        # settings, result, packed constants, elastic constants: one array (kernel.aux_parts)
         aux = np.zeros(kernel.aux_size(elastic))
-        o_res = kernel.SETTINGS_SIZE
-        o_par = o_res + kernel.RESULT_SIZE
-        settings = aux[:o_res]
+        settings, result, par, epar = kernel.aux_parts(aux)
         settings[7] = self.config.track.track_start_rad
         settings[8] = self.model.preload_load()
         settings[9] = -1.0 if self._preload else self.config.solver.min_axial_load_n
@@ -320,12 +318,10 @@ class _PathSteps:
         buf = self._path_buf = _PathBuffers()
         buf.state, buf.views, buf.settings, buf.elastic = state, views, settings, elastic
         buf.tail = state[16 * n:16 * n + (1 if elastic else 3)]
-        buf.aux = aux
-        buf.result = aux[o_res:o_par]
-        buf.par = aux[o_par:o_par + kernel.PAR_SIZE]
+        buf.aux, buf.result, buf.par = aux, result, par
         if elastic:
-            aux[o_par + kernel.PAR_SIZE:] = kernel.pack_elastic_constants(
-                self.config.geometry.lead_m, self.config.elastic)
+            epar[:] = kernel.pack_elastic_constants(self.config.geometry.lead_m,
+                                                    self.config.elastic)
         buf.groups = np.zeros((2, n), dtype=np.int64)
         return buf
 

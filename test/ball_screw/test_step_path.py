@@ -127,8 +127,7 @@ def test_step_path_hands_the_rest_of_a_path_to_step(model, config, monkeypatch):
 
     def first_only(state, active, path, aux, *rest):
         k = len(path) // 3
-        settings = aux[:kernel.SETTINGS_SIZE]
-        result = aux[kernel.SETTINGS_SIZE:kernel.SETTINGS_SIZE + kernel.RESULT_SIZE]
+        settings, result = kernel.aux_parts(aux)[:2]
         answered_tol = settings[11]
         settings[11] = settings[12]
         out = real(state, active, path[::k].copy(), aux, *rest)
